@@ -1,0 +1,285 @@
+"""Strip theory: section polars on lifting-line strips, any flight state, any deflection.
+
+For a flight state (angle of attack, sideslip, body rates, control deflections) the
+circulation of every strip satisfies the nonlinear lifting-line condition
+
+    Gamma_i = 1/2 |U_i| c_i cl_i(alpha_geo_i - alpha_ind_i(Gamma))
+
+with ``cl`` from the stored airfoil polar (plus control increments). It is solved by
+Newton's method. Strip forces then follow from the section cl, cd, cm at the effective
+angle, applied at the local dynamic pressure in the local flow direction; summing them
+gives forces and moments about the aerodynamic reference point. Damping and sideslip
+derivatives are differences of these sums (strip integration of body rates).
+
+All quantities are dimensionless by construction: the free-stream speed is 1 and the
+density 1, so a force divided by (0.5 * S_ref) is a coefficient.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry import AircraftGeometry, LiftingSurface
+from .lifting_line import LiftingLine, Strips, combine, freestream_dir, onset_velocity, surface_strips
+from .sections import section_coefficients
+
+# Sign of each control's deflection on the strips it covers (positive = more strip lift),
+# per side (+1 right half, -1 left half, 0 vertical). JSBSim conventions for the inputs:
+# flap and elevator positive trailing edge down; aileron positive = roll right (right
+# trailing edge up, left down); rudder positive = trailing edge left (nose-left yaw).
+CONTROL_SIGN = {
+    "flap": {1: 1.0, -1: 1.0},
+    "elevator": {1: 1.0, -1: 1.0},
+    "aileron": {1: -1.0, -1: 1.0},
+    "rudder": {0: -1.0},
+}
+
+
+_STEP = 0.25                                    # [deg] resolution of the tabulated strip polars
+_GRID = np.arange(-180.0, 180.0 + _STEP / 2, _STEP)
+
+
+@dataclass
+class StripSolution:
+    alpha: float
+    beta: float
+    gamma: np.ndarray
+    onset: np.ndarray          # (N,3) onset velocity incl. body-rate terms
+    alpha_geo: np.ndarray      # [rad]
+    alpha_ind: np.ndarray      # [rad]
+    cl: np.ndarray
+    cd: np.ndarray
+    cm: np.ndarray
+    converged: bool
+
+    @property
+    def alpha_eff(self) -> np.ndarray:
+        return self.alpha_geo - self.alpha_ind
+
+
+class StripModel:
+    """Strips of some lifting surfaces with their sections, ready to be solved."""
+
+    def __init__(self, geom: AircraftGeometry, airfoils: dict, surfaces: tuple[LiftingSurface, ...],
+                 ref_m: np.ndarray, n_half: int = 24, core_m: float | None = None,
+                 dynamic_pressure_ratio: dict[str, float] | None = None):
+        self.geom = geom
+        self.ref_m = ref_m
+        parts = [surface_strips(s, ref_m, n_half if not s.vertical else max(8, n_half // 2)) for s in surfaces]
+        self.strips: Strips = combine(*parts)
+        st = self.strips
+        self.surfaces = {s.name: s for s in surfaces}
+        self.airfoil = {s.name: airfoils[s.airfoil] for s in surfaces}
+        self.core_m = core_m if core_m is not None else 1e-4 * geom.reference.span_m
+        n = st.n
+        self.E = np.zeros(n)
+        self.kind = np.full(n, "plain", dtype=object)
+        self.ctrl = np.full(n, "", dtype=object)
+        for s in surfaces:
+            m = st.mask(s.name)
+            for c in s.controls:
+                on = m & (st.eta >= c.y_start_m - 1e-9) & (st.eta <= c.y_end_m + 1e-9)
+                self.E[on] = c.chord_fraction
+                self.kind[on] = c.kind
+                self.ctrl[on] = c.name
+        self.kind = self.kind.astype(str)
+        self.ctrl = self.ctrl.astype(str)
+        self.reynolds = np.full(n, np.nan)
+        self._table: np.ndarray | None = None
+        # each airfoil's stored polars tabulated on the common grid: (3, n_re, n_alpha)
+        self._airfoil_tables = {}
+        for name, af in self.airfoil.items():
+            res = np.asarray(af.reynolds, float)
+            t = np.empty((3, len(res), len(_GRID)))
+            for k, r in enumerate(res):
+                t[0, k], t[1, k], t[2, k] = af.polar(float(r)).coefficients(_GRID)
+            self._airfoil_tables[name] = (np.log(res), t)
+        # dynamic-pressure ratio per strip (tail surfaces in the wing/fuselage wake)
+        self.q_ratio = np.ones(n)
+        for name, r in (dynamic_pressure_ratio or {}).items():
+            self.q_ratio[st.surface == name] = r
+        # the fuselage is a reflection plane for a fin standing on it
+        self.image_mask = np.zeros(n, bool)
+        self.image_z = 0.0
+        for s in surfaces:
+            if s.vertical:
+                self.image_mask |= st.mask(s.name)
+                self.image_z = -(s.z_m[0] - ref_m[2])
+        self._lines: dict[float, LiftingLine] = {}
+
+    # ------------------------------------------------------------------ helpers
+    def set_reynolds(self, speed_ms: float, rho: float, mu: float) -> None:
+        """Reynolds number of every strip for a speed; tabulates each strip's polar at it."""
+        re = rho * speed_ms * self.strips.chord / mu
+        if self._table is not None and np.allclose(re, self.reynolds, rtol=1e-9):
+            return
+        self.reynolds = re
+        n = self.strips.n
+        tab = np.empty((3, n, len(_GRID)))
+        for name, (log_re, af_tab) in self._airfoil_tables.items():
+            idx = np.flatnonzero(self.strips.surface == name)
+            # linear in log(Re) between the stored polars, clamped at the ends (as Airfoil.polar)
+            x = np.clip(np.log(re[idx]), log_re[0], log_re[-1])
+            j = np.clip(np.searchsorted(log_re, x) - 1, 0, max(len(log_re) - 2, 0))
+            if len(log_re) == 1:
+                tab[:, idx] = af_tab[:, [0] * len(idx)]
+                continue
+            w = ((x - log_re[j]) / (log_re[j + 1] - log_re[j]))[None, :, None]
+            tab[:, idx] = af_tab[:, j] * (1.0 - w) + af_tab[:, j + 1] * w
+        lo = np.searchsorted(_GRID, -2.0)
+        hi = np.searchsorted(_GRID, 4.0)
+        self._slope = (tab[0, :, hi] - tab[0, :, lo]) / math.radians(_GRID[hi] - _GRID[lo])
+        self._table = tab
+
+    def polar(self, alpha_deg: np.ndarray, rows: np.ndarray | None = None):
+        """Clean-section cl, cd, cm of the strips (all, or ``rows``) at alpha [deg]."""
+        a = (np.asarray(alpha_deg, float) + 180.0) % 360.0
+        pos = a / _STEP
+        i = np.minimum(pos.astype(int), len(_GRID) - 2)
+        w = pos - i
+        r = np.arange(self.strips.n) if rows is None else rows
+        t = self._table
+        return tuple(t[k, r, i] * (1.0 - w) + t[k, r, i + 1] * w for k in range(3))
+
+    def line(self, alpha: float, beta: float = 0.0) -> LiftingLine:
+        """Lifting line with the wake along the free stream in the plane of symmetry.
+
+        Sideslip does not yaw the wake: with the control points on the bound vortex, a
+        yawed wake gives a spurious destabilizing rolling moment proportional to lift (the
+        opposite effect of the leading half-wing's upwash needs chordwise resolution, which
+        a lifting line does not have), so the wake stays unyawed.
+        """
+        key = round(alpha, 9)
+        if key not in self._lines:
+            if len(self._lines) > 64:
+                self._lines.clear()
+            self._lines[key] = LiftingLine(self.strips, freestream_dir(alpha, 0.0), self.core_m,
+                                           self.image_mask, self.image_z)
+        return self._lines[key]
+
+    def deltas(self, controls: dict[str, float] | None) -> np.ndarray:
+        """Per-strip deflection [rad] (positive = more lift) from control inputs [rad]."""
+        d = np.zeros(self.strips.n)
+        for name, value in (controls or {}).items():
+            if value == 0.0:
+                continue
+            on = self.ctrl == name
+            for side, sign in CONTROL_SIGN[name].items():
+                d[on & (self.strips.side == side)] = sign * value
+        return d
+
+    def sections(self, alpha_eff: np.ndarray, delta: np.ndarray):
+        """cl, cd, cm of all strips at effective angles [rad] with deflections [rad]."""
+        return section_coefficients(self.polar, alpha_eff, delta, self.E, self.kind, self._slope)
+
+    @property
+    def lift_slope(self) -> np.ndarray:
+        """Linear lift slope of each strip's section [1/rad] (-2..4 deg)."""
+        return self._slope
+
+    # ------------------------------------------------------------------ solve
+    def solve(self, alpha: float, beta: float = 0.0, omega=(0.0, 0.0, 0.0), controls: dict | None = None,
+              gamma0: np.ndarray | None = None, max_iter: int = 60) -> StripSolution:
+        """Nonlinear lifting-line solution for a state. Angles [rad], rates nondimensional
+        by V = 1 (i.e. omega in rad per unit length travelled)."""
+        st = self.strips
+        ll = self.line(alpha, beta)
+        U = onset_velocity(st.point, alpha, beta, omega, V=1.0)
+        Umag = np.linalg.norm(U, axis=1)
+        alpha_geo = np.arctan2(np.sum(U * st.e_normal, 1), np.sum(U * st.e_chord, 1))
+        delta = self.deltas(controls)
+        Vn = np.einsum("ijk,ik->ij", ll.V, st.e_normal)
+        half_c = 0.5 * st.chord
+
+        def residual(g):
+            a_ind = -(Vn @ g) / Umag
+            cl, _, _ = self.sections(alpha_geo - a_ind, delta)
+            return g - half_c * Umag * cl, a_ind
+
+        if gamma0 is None:
+            # linear start: slope and zero-lift angle from the polar
+            a0 = self.lift_slope
+            cl0, _, _ = self.sections(np.zeros(st.n), delta)
+            alpha0 = -cl0 / a0
+            gamma = ll.solve(U, a0, alpha0)
+        else:
+            gamma = gamma0.copy()
+        r, a_ind = residual(gamma)
+        norm = np.linalg.norm(r)
+        converged = norm < 1e-10
+        h = 1e-4
+        it = 0
+        while not converged and it < max_iter:
+            it += 1
+            cl_p, _, _ = self.sections(alpha_geo - a_ind + h, delta)
+            cl_m, _, _ = self.sections(alpha_geo - a_ind - h, delta)
+            slope = (cl_p - cl_m) / (2 * h)
+            J = np.eye(st.n) - (half_c * slope)[:, None] * Vn
+            try:
+                step = np.linalg.solve(J, -r)
+            except np.linalg.LinAlgError:
+                break
+            lam = 1.0
+            for _ in range(12):
+                g_new = gamma + lam * step
+                r_new, a_new = residual(g_new)
+                if np.linalg.norm(r_new) < (1 - 1e-4 * lam) * norm:
+                    break
+                lam *= 0.5
+            else:
+                break
+            gamma, r, a_ind, norm = g_new, r_new, a_new, np.linalg.norm(r_new)
+            converged = norm < 1e-10 * max(1.0, np.abs(gamma).max())
+        cl, cd, cm = self.sections(alpha_geo - a_ind, delta)
+        return StripSolution(alpha, beta, gamma, U, alpha_geo, a_ind, cl, cd, cm, bool(converged))
+
+    # ------------------------------------------------------------------ loads
+    def strip_forces(self, sol: StripSolution, mask: np.ndarray | None = None) -> np.ndarray:
+        """Force on each strip (N,3), body axes, for V = 1 and rho = 1 (q = 0.5 |U|^2)."""
+        st = self.strips
+        U = sol.onset
+        w = self.line(sol.alpha, sol.beta).induced_velocity(sol.gamma)
+        Ul = U + w
+        e_d = Ul / np.linalg.norm(Ul, axis=1)[:, None]
+        e_l = np.cross(Ul, st.e_span)
+        e_l /= np.linalg.norm(e_l, axis=1)[:, None]
+        q = 0.5 * np.sum(U * U, axis=1) * self.q_ratio
+        cd = np.where(st.profile, sol.cd, 0.0)
+        f = (q * st.area)[:, None] * (sol.cl[:, None] * e_l + cd[:, None] * e_d)
+        if mask is not None:
+            f = f * mask[:, None]
+        return f
+
+    def loads(self, sol: StripSolution, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Total force and moment (about the reference point) [body axes], V = rho = 1.
+
+        The moment includes the section quarter-chord moments (about the span axis).
+        """
+        st = self.strips
+        f = self.strip_forces(sol, mask)
+        q = 0.5 * np.sum(sol.onset * sol.onset, axis=1) * self.q_ratio
+        m_sec = (q * st.area * st.chord * sol.cm)[:, None] * st.e_span
+        if mask is not None:
+            m_sec = m_sec * mask[:, None]
+        M = np.sum(np.cross(st.point, f), axis=0) + np.sum(m_sec, axis=0)
+        return f.sum(axis=0), M
+
+
+def wind_to_coeffs(F: np.ndarray, M: np.ndarray, alpha: float, beta: float, S: float, b: float, c: float) -> dict:
+    """Body-axis force/moment (V = rho = 1) -> CL, CD, CY (wind axes) and Cl, Cm, Cn (body)."""
+    qS = 0.5 * S
+    ca, sa, cb, sb = math.cos(alpha), math.sin(alpha), math.cos(beta), math.sin(beta)
+    # body -> wind rotation
+    x_w = np.array([ca * cb, sb, sa * cb])
+    y_w = np.array([-ca * sb, cb, -sa * sb])
+    z_w = np.array([-sa, 0.0, ca])
+    return {
+        "CD": -F @ x_w / qS,
+        "CY": F @ y_w / qS,
+        "CL": -F @ z_w / qS,
+        "Cl": M[0] / (qS * b),
+        "Cm": M[1] / (qS * c),
+        "Cn": M[2] / (qS * b),
+    }

@@ -1,0 +1,205 @@
+"""Calibration factors of the method, as data.
+
+Each factor is a named JSBSim property declared (persistent) in the generated aircraft
+XML with its neutral value, bounds and units beside it. The aircraft functions multiply
+or add it where the method puts it. Propeller factors (``baked=True``) are applied to the
+propeller tables when they are written, and recorded in the propeller file.
+
+``FactorSet`` holds values; it converts to and from the optimizer's vector in one place,
+normalizing each factor to [-1, 1] over its bounds, and refuses out-of-bounds values.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+
+from .errors import CalibError
+
+
+@dataclass(frozen=True)
+class Factor:
+    name: str
+    property: str          # JSBSim property path
+    neutral: float         # value that leaves the baseline model unchanged
+    lower: float
+    upper: float
+    unit: str              # '-' for dimensionless
+    stage: str             # steady | pitch | control | pfactor | flaps | damping
+    applies_to: str        # where the method puts it
+    doc: str               # one line: what it does and which way it moves the result
+    baked: bool = False    # True: applied to the propeller tables at generation
+
+    def to_unit(self, value: float) -> float:
+        """Value mapped to [-1, 1] over the bounds."""
+        return 2.0 * (value - self.lower) / (self.upper - self.lower) - 1.0
+
+    def from_unit(self, u: float) -> float:
+        return self.lower + 0.5 * (u + 1.0) * (self.upper - self.lower)
+
+
+def _f(name, neutral, lower, upper, unit, stage, applies_to, doc, baked=False, prop=None):
+    suffix = {"deg": "-deg", "m2/s": "-m2_sec"}.get(unit, "")
+    return Factor(name, prop or f"calibration/{name}{suffix}", neutral, lower, upper, unit, stage, applies_to, doc,
+                  baked)
+
+
+FACTORS: tuple[Factor, ...] = (
+    # --- steady stage (method Table 3.1, eq. 3.1-3.19)
+    _f("alpha_shift", 0.0, -4.0, 4.0, "deg", "steady", "wing strips: section angle (eq. 3.1-3.2)",
+       "adds to the wing section angle before the polar lookup: + gives more lift at the same alpha"),
+    _f("K_cl_slope", 1.0, 0.7, 1.3, "-", "steady", "wing strips: lift in wind axes (eq. 3.6)",
+       "scales the wing lift: > 1 steeper lift curve, lower trim alpha"),
+    _f("K_cl_offset", 0.0, -0.3, 0.3, "-", "steady", "wing strips: lift in wind axes (eq. 3.6)",
+       "adds to the section lift of every wing strip: + shifts zero lift to lower alpha"),
+    _f("K_cd0_slope", 1.0, 0.7, 1.3, "-", "steady", "profile drag of all lifting surfaces and the fuselage group (eq. 3.7-3.8)",
+       "scales parasitic drag: > 1 more drag, higher cruise power and RPM, less climb"),
+    _f("K_cd0_offset", 0.0, -0.05, 0.05, "-", "steady", "profile drag of all lifting surfaces and the fuselage group (eq. 3.7-3.8)",
+       "adds to every strip's profile drag and to the fuselage drag: + more drag"),
+    _f("K_cdi", 1.0, 0.7, 1.3, "-", "steady", "induced drag of all strips (eq. 3.9)",
+       "scales induced drag (1/Oswald factor): > 1 more drag at high lift, less climb"),
+    _f("J_anchor", 0.6, 0.45, 0.75, "-", "steady", "propeller tables: anchor of the tilt and quadratic terms (eq. 3.16-3.17)",
+       "advance ratio about which the CT/CQ tilt and curvature act", baked=True),
+    _f("K_CT_shift", 0.0, -0.1, 0.1, "-", "steady", "propeller C_THRUST: advance-ratio shift (eq. 3.13)",
+       "reads the thrust curve at J + shift: + less thrust (curve falls with J)", baked=True),
+    _f("K_CT_scale", 1.0, 0.8, 1.2, "-", "steady", "propeller C_THRUST (eq. 3.16)",
+       "scales thrust coefficient: > 1 more thrust, better climb, lower cruise RPM", baked=True),
+    _f("K_CT_tilt", 0.0, -0.1, 0.1, "-", "steady", "propeller C_THRUST (eq. 3.16)",
+       "linear change of thrust with J about J_anchor: + more thrust at high J", baked=True),
+    _f("K_CT_quad", 0.0, -0.2, 0.2, "-", "steady", "propeller C_THRUST (eq. 3.16)",
+       "quadratic change of thrust about J_anchor: + more thrust away from the anchor", baked=True),
+    _f("K_CQ_shift", 0.0, -0.1, 0.1, "-", "steady", "propeller C_POWER (= 2 pi C_Q): advance-ratio shift (eq. 3.13)",
+       "reads the torque curve at J + shift: + less torque, higher RPM", baked=True),
+    _f("K_CQ_scale", 1.0, 0.8, 1.2, "-", "steady", "propeller C_POWER (eq. 3.17)",
+       "scales torque/power coefficient: > 1 more power absorbed, lower RPM", baked=True),
+    _f("K_CQ_tilt", 0.0, -0.1, 0.1, "-", "steady", "propeller C_POWER (eq. 3.17)",
+       "linear change of torque with J about J_anchor", baked=True),
+    _f("K_CQ_quad", 0.0, -0.2, 0.2, "-", "steady", "propeller C_POWER (eq. 3.17)",
+       "quadratic change of torque about J_anchor", baked=True),
+    _f("K_HP", 1.0, 0.8, 1.2, "-", "steady", "engine power (eq. 3.18): volumetric efficiency",
+       "scales engine air flow and so power: > 1 more full-throttle power, better climb"),
+    _f("K_FF", 1.0, 0.8, 1.2, "-", "steady", "engine fuel flow at constant power (eq. 3.19)",
+       "scales fuel flow: > 1 more fuel burnt for the same power"),
+    # --- flight-test stage: pitching moment (Table 3.4, eq. 3.27-3.30)
+    _f("alpha_shift_addl", 0.0, -2.0, 2.0, "deg", "pitch", "wing strips: section angle, added to alpha_shift (eq. 3.27)",
+       "additional wing section-angle shift: + lowers trim pitch attitude"),
+    _f("K_cm_slope", 1.0, 0.2, 3.0, "-", "pitch", "wing strips: section pitching moment (eq. 3.30)",
+       "scales the wing section pitching moment (nose-down camber moment)"),
+    _f("K_cm_offset", 0.0, -0.5, 0.5, "-", "pitch", "wing strips: section pitching moment (eq. 3.30)",
+       "adds to every wing strip's section moment: + nose-up, elevator trims further down"),
+    # --- control effectiveness (Table 3.5, eq. 3.35-3.38)
+    _f("K_de_slope", 1.0, 0.5, 3.0, "-", "control", "elevator circulation (eq. 3.36)",
+       "scales elevator effectiveness: > 1 smaller trim elevator"),
+    _f("K_de_offset", 0.0, -5.0, 5.0, "m2/s", "control", "elevator circulation (eq. 3.36)",
+       "adds circulation on the elevator span: + tail lift up (nose down), falls with speed"),
+    _f("K_da_slope", 1.0, 0.5, 3.0, "-", "control", "aileron circulation (eq. 3.36)",
+       "scales aileron effectiveness: > 1 smaller trim aileron"),
+    _f("K_da_offset", 0.0, -5.0, 5.0, "m2/s", "control", "aileron circulation (eq. 3.36)",
+       "adds antisymmetric aileron circulation: + right-roll moment"),
+    _f("K_dr_slope", 1.0, 0.5, 3.0, "-", "control", "rudder circulation (eq. 3.36)",
+       "scales rudder effectiveness: > 1 smaller trim rudder"),
+    _f("K_dr_offset", 0.0, -5.0, 5.0, "m2/s", "control", "rudder circulation (eq. 3.36)",
+       "adds fin circulation as a positive (trailing edge left) rudder does: nose-left moment"),
+    _f("K_PF", 0.0, 0.0, 0.5, "-", "pfactor", "yawing moment N = -K_PF T (D/2) sin(alpha) (eq. 3.38)",
+       "P-factor: + nose-left yaw growing with thrust and alpha (right rudder in climbs)"),
+    # --- flaps (Table 3.6, eq. 3.42-3.45)
+    _f("K_dcd0_flaps", 0.0, -2.0, 2.0, "-", "flaps", "flap strips: profile drag per flap degree (eq. 3.42)",
+       "adds K times the per-degree flap profile-drag estimate: + more flaps-down drag"),
+    _f("K_dcm_flaps", 0.0, -3.0, 3.0, "-", "flaps", "flap strips: section moment per flap degree (eq. 3.44)",
+       "adds K times the per-degree flap moment estimate: + more nose-down with flaps"),
+    # --- damping (Table 3.7, eq. 3.48-3.56)
+    _f("K_Clp", 0.0, -0.02, 0.02, "-", "damping", "rolling moment -K p b/(2V) qbar S b (eq. 3.48)",
+       "extra roll damping: + more damping"),
+    _f("K_Cmq", 0.0, -0.1, 0.1, "-", "damping", "pitching moment -K q c/(2V) qbar S c (eq. 3.51)",
+       "extra pitch damping: + more damping"),
+    _f("K_Cnr", 0.0, -0.02, 0.02, "-", "damping", "yawing moment -K r b/(2V) qbar S b (eq. 3.54)",
+       "extra yaw damping: + more damping"),
+)
+
+REGISTRY: dict[str, Factor] = {f.name: f for f in FACTORS}
+STAGES = ("steady", "pitch", "control", "pfactor", "flaps", "damping")
+PROPELLER_FACTORS = tuple(f.name for f in FACTORS if f.baked)
+
+
+class FactorError(CalibError, ValueError):
+    """A factor name is unknown or a value is outside its bounds."""
+
+
+def factor(name: str) -> Factor:
+    try:
+        return REGISTRY[name]
+    except KeyError:
+        raise FactorError(f"unknown factor '{name}'; known factors: {', '.join(REGISTRY)}") from None
+
+
+def neutral_values() -> dict[str, float]:
+    return {f.name: f.neutral for f in FACTORS}
+
+
+def stage_factors(stage: str) -> tuple[Factor, ...]:
+    if stage not in STAGES:
+        raise FactorError(f"unknown stage '{stage}'; stages: {', '.join(STAGES)}")
+    return tuple(f for f in FACTORS if f.stage == stage)
+
+
+class FactorSet(Mapping[str, float]):
+    """Values of all factors (neutral unless given). Out-of-bounds values raise, never clamp."""
+
+    def __init__(self, values: Mapping[str, float] | None = None):
+        self._v = neutral_values()
+        bad = []
+        for k, v in (values or {}).items():
+            f = REGISTRY.get(k)
+            if f is None:
+                bad.append(f"unknown factor '{k}'")
+                continue
+            v = float(v)
+            if not (f.lower - 1e-12 <= v <= f.upper + 1e-12) or not np.isfinite(v):
+                bad.append(f"{k} = {v:g} is outside [{f.lower:g}, {f.upper:g}] {f.unit}")
+                continue
+            self._v[k] = v
+        if bad:
+            raise FactorError("; ".join(bad))
+
+    def __getitem__(self, k: str) -> float:
+        return self._v[k]
+
+    def __iter__(self):
+        return iter(self._v)
+
+    def __len__(self) -> int:
+        return len(self._v)
+
+    def replace(self, **changes: float) -> "FactorSet":
+        v = dict(self._v)
+        v.update(changes)
+        return FactorSet(v)
+
+    def updated(self, changes: Mapping[str, float]) -> "FactorSet":
+        v = dict(self._v)
+        v.update(changes)
+        return FactorSet(v)
+
+    def vector(self, names: Sequence[str], normalized: bool = True) -> np.ndarray:
+        return np.array([REGISTRY[n].to_unit(self._v[n]) if normalized else self._v[n] for n in names])
+
+    def with_vector(self, names: Sequence[str], x: Iterable[float], normalized: bool = True) -> "FactorSet":
+        v = dict(self._v)
+        for n, xi in zip(names, x):
+            v[n] = REGISTRY[n].from_unit(float(xi)) if normalized else float(xi)
+        return FactorSet(v)
+
+    def changed(self) -> dict[str, float]:
+        """Factors that differ from neutral."""
+        return {k: v for k, v in self._v.items() if v != REGISTRY[k].neutral}
+
+    def propeller(self) -> dict[str, float]:
+        return {k: self._v[k] for k in PROPELLER_FACTORS}
+
+    def as_dict(self) -> dict[str, float]:
+        return dict(self._v)
+
+    def __repr__(self) -> str:
+        ch = self.changed()
+        return f"FactorSet({ch if ch else 'neutral'})"

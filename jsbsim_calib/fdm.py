@@ -1,0 +1,413 @@
+"""The one module that drives JSBSim: load an aircraft in a sandbox, set factors, loading
+and atmosphere, and trim it to a flight condition.
+
+Trim: JSBSim evaluates the accelerations of a given state (``run_ic`` + the engine's
+steady state + one frame with integration suspended); a Newton-type root finder
+(MINPACK ``hybr``) drives the six body accelerations to zero by moving angle of attack,
+sideslip, elevator, aileron, rudder and either the throttle (flight path given) or the
+pitch attitude (throttle given, flight path free: a climb at full throttle). The state is
+straight flight at a given bank angle or a coordinated turn. A failed trim says why and
+never leaves NaN behind for the next point.
+
+Propeller factors are baked into the propeller tables, so changing them rewrites the
+propeller file in the sandbox and reloads the model (a few milliseconds).
+"""
+from __future__ import annotations
+
+import math
+import shutil
+import tempfile
+import warnings
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Mapping
+
+import jsbsim
+import numpy as np
+from lxml import etree
+from scipy.optimize import root
+
+from . import xmlmodel
+from .atmosphere import isa_pressure, isa_temperature, kcas_to_ktas
+from .build import AircraftPaths, load_aircraft_geometry, propeller_tree, read_bem_csv
+from .engine import FAR_BEST_POWER, mixture_for_far, poh_mixture
+from .errors import ModelError, TrimError
+from .factors import PROPELLER_FACTORS, REGISTRY, FactorSet
+from .units import FT, G0, KT, LB_PER_GAL_AVGAS, LBM, T0, LAPSE
+
+G_FT = G0 / FT
+R_EARTH_FT = 20925646.325  # JSBSim's reference radius for geopotential altitude (ft)
+CONTROL_LIMIT = 1.0 + 1e-6
+
+
+@dataclass(frozen=True)
+class Condition:
+    """A flight condition to trim to. Speeds in knots, altitudes in feet, angles in degrees."""
+
+    pressure_alt_ft: float
+    weight_lb: float
+    kcas: float | None = None
+    ktas: float | None = None
+    oat_c: float | None = None            # absolute temperature; else ISA + isa_dev_c
+    isa_dev_c: float = 0.0
+    cg_in: float | None = None            # None: the aircraft's POH CG
+    flaps_deg: float = 0.0
+    mode: str = "level"                   # level: throttle trims, vs given | full_throttle: flight path free
+    vs_fpm: float = 0.0                   # pressure-altitude rate for mode 'level'
+    throttle: float = 1.0                 # for mode 'full_throttle'
+    bank_deg: float = 0.0
+    turn: str = "straight"                # straight (heading fixed) | coordinated
+    mixture: str | float = "cruise"       # cruise | climb (POH procedure) | explicit command
+    fuel_fraction: float | None = None    # None: the aircraft's default for POH points
+
+    def __post_init__(self):
+        if (self.kcas is None) == (self.ktas is None):
+            raise ValueError("give exactly one of kcas and ktas")
+        if self.mode not in ("level", "full_throttle"):
+            raise ValueError(f"mode must be 'level' or 'full_throttle', not {self.mode!r}")
+        if self.turn not in ("straight", "coordinated"):
+            raise ValueError(f"turn must be 'straight' or 'coordinated', not {self.turn!r}")
+
+    def temperature_k(self) -> float:
+        if self.oat_c is not None:
+            return self.oat_c + 273.15
+        return float(isa_temperature(self.pressure_alt_ft * FT)) + self.isa_dev_c
+
+
+@dataclass
+class TrimResult:
+    """Trimmed state. Surface angles in JSBSim's signs (elevator + trailing edge down,
+    aileron + roll right, rudder + trailing edge left)."""
+
+    condition: Condition
+    trimmed: bool
+    reason: str = ""
+    residual: float = float("nan")
+    evals: int = 0
+    alpha_deg: float = float("nan")
+    beta_deg: float = float("nan")
+    theta_deg: float = float("nan")
+    phi_deg: float = float("nan")
+    gamma_deg: float = float("nan")
+    roc_fpm: float = float("nan")           # pressure-altitude rate (what a VSI shows)
+    roc_geometric_fpm: float = float("nan")
+    ktas: float = float("nan")
+    kcas: float = float("nan")
+    throttle: float = float("nan")
+    mixture: float = float("nan")
+    rpm: float = float("nan")
+    power_hp: float = float("nan")
+    pct_power: float = float("nan")
+    gph: float = float("nan")
+    thrust_lbf: float = float("nan")
+    torque_lbft: float = float("nan")
+    map_inhg: float = float("nan")
+    elevator_deg: float = float("nan")
+    aileron_deg: float = float("nan")
+    rudder_deg: float = float("nan")
+    qbar_psf: float = float("nan")
+    extra: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__ if k not in ("condition", "extra")}
+        d.update(self.extra)
+        return d
+
+
+OUTPUTS = {
+    "alpha_deg": "aero/alpha-deg", "beta_deg": "aero/beta-deg", "theta_deg": "attitude/theta-deg",
+    "phi_deg": "attitude/phi-deg", "gamma_deg": "flight-path/gamma-deg", "ktas": "velocities/vtrue-kts",
+    "kcas": "velocities/vc-kts", "throttle": "fcs/throttle-pos-norm", "mixture": "fcs/mixture-pos-norm",
+    "rpm": "propulsion/engine/engine-rpm", "power_hp": "propulsion/engine/power-hp",
+    "gph": "propulsion/engine/fuel-flow-rate-gph", "thrust_lbf": "propulsion/engine/thrust-lbs",
+    "map_inhg": "propulsion/engine/map-inhg", "elevator_deg": "fcs/elevator-pos-deg",
+    "aileron_deg": "fcs/aileron-pos-deg", "rudder_deg": "fcs/rudder-pos-deg", "qbar_psf": "aero/qbar-psf",
+}
+ACCELS = ("accelerations/udot-ft_sec2", "accelerations/vdot-ft_sec2", "accelerations/wdot-ft_sec2",
+          "accelerations/pdot-rad_sec2", "accelerations/qdot-rad_sec2", "accelerations/rdot-rad_sec2")
+
+
+class Simulator:
+    """One aircraft loaded in JSBSim, in a private sandbox root, ready to be trimmed.
+
+    ``factors``: values to start from (default: those declared in the aircraft file);
+    ``baseline=True``: all factors neutral (the uncalibrated model).
+    """
+
+    def __init__(self, root: Path | str, name: str, *, factors: FactorSet | None = None, baseline: bool = False):
+        self.root = Path(root).resolve()
+        self.paths = AircraftPaths(self.root, name)
+        self.name = name
+        if not self.paths.aircraft_xml.is_file():
+            raise ModelError(f"{self.paths.aircraft_xml} not found: run 'jsbsim-calib generate {name}'")
+        self.geometry = load_aircraft_geometry(self.root, name)
+        self.bem = read_bem_csv(self.paths.propeller_bem)
+        declared = xmlmodel.read_factors(self.paths.aircraft_xml)
+        self._check_baked(declared)
+        self.factors = FactorSet() if baseline else (factors if factors is not None else declared)
+        self._box = Path(tempfile.mkdtemp(prefix="jsbsim-calib-"))
+        (self._box / "aircraft" / name).mkdir(parents=True)
+        (self._box / "engine").mkdir()
+        (self._box / "systems").mkdir()
+        self._tree = etree.parse(str(self.paths.aircraft_xml))
+        shutil.copy(self.paths.engine_xml, self._box / "engine")
+        self._box_paths = AircraftPaths(self._box, name)
+        self._write_aircraft(self.factors)
+        self._write_propeller(self.factors)
+        self._baked = {k: self.factors[k] for k in PROPELLER_FACTORS}
+        self.loads = 0
+        self.fdm = self._load()
+        self._cache: dict = {}
+        self.trims = 0
+        self.evals = 0
+
+    # ------------------------------------------------------------------ sandbox
+    def _check_baked(self, declared: FactorSet) -> None:
+        if not self.paths.propeller_xml.is_file():
+            raise ModelError(f"{self.paths.propeller_xml} not found: run 'jsbsim-calib generate {self.name}'")
+        baked = xmlmodel.read_baked_factors(self.paths.propeller_xml)
+        diff = [f"{k}: aircraft file {declared[k]:g}, propeller tables {v:g}" for k, v in baked.items()
+                if k in declared and abs(declared[k] - v) > 1e-9]
+        if diff:
+            raise ModelError(f"{self.paths.aircraft_xml.name} declares propeller factors that differ from those baked "
+                             f"into {self.paths.propeller_xml.name} ({'; '.join(diff)}); propeller factors act "
+                             f"through the tables: run 'jsbsim-calib generate {self.name}' after editing them")
+
+    def _write_aircraft(self, factors: FactorSet) -> None:
+        xmlmodel.set_factor_values(self._tree, factors)
+        xmlmodel.write(self._tree, self._box_paths.aircraft_xml)
+
+    def _write_propeller(self, factors: FactorSet) -> None:
+        tree = propeller_tree(self.geometry, self.bem, factors, self.paths)
+        xmlmodel.write(tree, self._box_paths.propeller_xml)
+
+    def _load(self) -> jsbsim.FGFDMExec:
+        fdm = jsbsim.FGFDMExec(str(self._box))
+        fdm.set_debug_level(0)
+        fdm.disable_output()
+        if not fdm.load_model(self.name):
+            raise ModelError(f"JSBSim could not load {self.name} from {self._box}")
+        fdm["ic/terrain-elevation-ft"] = -30000.0     # no ground contact at any trim point
+        fdm["ic/h-sl-ft"] = 5000.0
+        fdm["ic/vt-fps"] = 150.0
+        fdm.run_ic()
+        fdm["propulsion/set-running"] = -1
+        fdm.set_trim_status(True)                     # flaps and actuators reach their command at once
+        self.loads += 1
+        for name, f in REGISTRY.items():
+            if not f.baked:
+                fdm[f.property] = self.factors[name]
+        return fdm
+
+    def close(self) -> None:
+        self.fdm = None
+        shutil.rmtree(self._box, ignore_errors=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __del__(self):
+        try:
+            shutil.rmtree(self._box, ignore_errors=True)
+        except Exception:
+            pass
+
+    # ------------------------------------------------------------------ factors
+    def set_factors(self, factors: FactorSet) -> None:
+        """Apply factor values: properties directly, propeller factors by re-baking + reload."""
+        prop_changed = any(abs(factors[k] - self._baked[k]) > 0 for k in PROPELLER_FACTORS)
+        self.factors = factors
+        if prop_changed:
+            self._write_propeller(factors)
+            self._baked = {k: factors[k] for k in PROPELLER_FACTORS}
+            self.fdm = self._load()
+        for name, f in REGISTRY.items():
+            if not f.baked:
+                self.fdm[f.property] = factors[name]
+
+    # ------------------------------------------------------------------ loading and atmosphere
+    def set_loading(self, weight_lb: float, cg_in: float | None = None, fuel_fraction: float | None = None) -> None:
+        """Total weight and CG station through the payload point mass; other stations empty."""
+        g = self.geometry
+        fdm = self.fdm
+        cg_in = g.operations.poh_cg_m / 0.0254 if cg_in is None else cg_in
+        frac = g.operations.poh_fuel_fraction if fuel_fraction is None else fuel_fraction
+        for i in range(1, len(g.mass.stations) + 1):
+            fdm[f"inertia/pointmass-weight-lbs[{i}]"] = 0.0
+        empty = g.mass.empty_mass_kg / LBM
+        x_e = g.mass.empty_cg_m[0] / 0.0254
+        tanks = [(t.capacity_m3 / 3.785411784e-3 * LB_PER_GAL_AVGAS, t.location_m[0] / 0.0254) for t in g.tanks]
+        fuel_cap = sum(c for c, _ in tanks)
+        fuel = min(frac * fuel_cap, max(weight_lb - empty - 1.0, 0.0))
+        for i, (cap, _) in enumerate(tanks):
+            fdm[f"propulsion/tank[{i}]/contents-lbs"] = fuel * cap / fuel_cap
+        payload = weight_lb - empty - fuel
+        if payload < 0:
+            raise TrimError(f"weight {weight_lb:g} lb is below the empty weight {empty:g} lb")
+        moment = weight_lb * cg_in - empty * x_e - sum(fuel * cap / fuel_cap * x for cap, x in tanks)
+        x_p = moment / payload if payload > 1e-6 else cg_in
+        if not -60.0 <= x_p <= 200.0:
+            raise TrimError(f"CG {cg_in:g} in at {weight_lb:g} lb cannot be reached with the payload "
+                            f"(it would sit at station {x_p:.0f} in)")
+        fdm["inertia/pointmass-weight-lbs[0]"] = payload
+        fdm["inertia/pointmass-location-X-inches[0]"] = x_p
+
+    def set_atmosphere(self, pressure_alt_ft: float, temperature_k: float) -> None:
+        """Geometric altitude and temperature bias giving this pressure altitude and temperature.
+
+        JSBSim's temperature bias shifts the whole profile, which changes the pressure at a
+        given height: solve (troposphere, closed form on geopotential height, then a
+        correction against JSBSim's own pressure altitude).
+        """
+        hp_m = pressure_alt_ft * FT
+        t_std = float(isa_temperature(hp_m))
+        dT = temperature_k - t_std                       # bias of the whole profile [K]
+        # geopotential height where the biased profile has the pressure of hp
+        h_gp = hp_m * (T0 + dT) / T0 if hp_m < 11000 else hp_m + dT / LAPSE
+        h_gp_ft = h_gp / FT
+        h_geo = R_EARTH_FT * h_gp_ft / (R_EARTH_FT - h_gp_ft)
+        fdm = self.fdm
+        fdm["atmosphere/delta-T"] = dT * 1.8
+        for _ in range(4):
+            fdm["ic/h-sl-ft"] = h_geo
+            fdm.run_ic()
+            err = fdm["atmosphere/pressure-altitude"] - pressure_alt_ft
+            if abs(err) < 0.05:
+                break
+            h_geo -= err * (T0 + dT) / T0
+        self._h_geo = h_geo
+
+    # ------------------------------------------------------------------ trim
+    def trim(self, cond: Condition, key=None) -> TrimResult:
+        """Trim to a condition. ``key`` identifies the point for warm starts."""
+        self.trims += 1
+        fdm = self.fdm
+        try:
+            self.set_loading(cond.weight_lb, cond.cg_in, cond.fuel_fraction)
+        except TrimError as exc:
+            return TrimResult(cond, False, str(exc))
+        T = cond.temperature_k()
+        self.set_atmosphere(cond.pressure_alt_ft, T)
+        p_amb = float(isa_pressure(cond.pressure_alt_ft * FT))
+        if isinstance(cond.mixture, str):
+            mix = poh_mixture(p_amb, climb=cond.mixture == "climb",
+                              full_rich_below_m=self.geometry.engine.full_rich_below_m)
+        else:
+            mix = float(cond.mixture)
+        fdm["fcs/mixture-cmd-norm"] = mix
+        fdm["fcs/flap-cmd-norm"] = cond.flaps_deg / max(1e-9, self._flap_max_deg())
+        ktas = cond.ktas if cond.ktas is not None else float(kcas_to_ktas(cond.kcas, cond.pressure_alt_ft * FT, T))
+        V = ktas * KT / FT
+        phi = math.radians(cond.bank_deg)
+        t_std = float(isa_temperature(cond.pressure_alt_ft * FT))
+        full = cond.mode == "full_throttle"
+        gamma = 0.0 if full else math.asin(max(-1.0, min(1.0, cond.vs_fpm / 60.0 * (T / t_std) / V)))
+        omega = G_FT * math.tan(phi) / V if cond.turn == "coordinated" else 0.0
+        scale = np.array([G_FT, G_FT, G_FT, 1.0, 1.0, 1.0])
+
+        def set_state(x):
+            a, b = x[0], x[1]
+            if full:
+                th, thr = x[2], cond.throttle
+            else:
+                thr = x[2]
+                ca, cb = math.cos(a) * math.cos(b), math.sin(b) * math.sin(phi) + math.sin(a) * math.cos(b) * math.cos(phi)
+                th = math.atan2(cb, ca) + math.asin(max(-1.0, min(1.0, math.sin(gamma) / math.hypot(ca, cb))))
+            fdm["ic/phi-rad"] = phi
+            fdm["ic/theta-rad"] = th
+            fdm["ic/psi-true-rad"] = 0.0
+            fdm["ic/u-fps"] = V * math.cos(a) * math.cos(b)
+            fdm["ic/v-fps"] = V * math.sin(b)
+            fdm["ic/w-fps"] = V * math.sin(a) * math.cos(b)
+            fdm["ic/p-rad_sec"] = -omega * math.sin(th)
+            fdm["ic/q-rad_sec"] = omega * math.sin(phi) * math.cos(th)
+            fdm["ic/r-rad_sec"] = omega * math.cos(phi) * math.cos(th)
+            fdm["fcs/throttle-cmd-norm"] = min(max(thr, 0.0), 1.0)
+            fdm["fcs/elevator-cmd-norm"] = x[3]
+            fdm["fcs/aileron-cmd-norm"] = x[4]
+            fdm["fcs/rudder-cmd-norm"] = x[5]
+            fdm.run_ic()
+            fdm.get_propulsion().get_steady_state()
+            fdm.run()
+
+        def residual(x):
+            self.evals += 1
+            set_state(x)
+            r = np.array([fdm[p] for p in ACCELS]) / scale
+            if not np.all(np.isfinite(r)):
+                return np.full(6, 1e3)
+            # keep the solver inside the physical ranges: continue the residual linearly past them
+            excess = max(0.0, abs(x[3]) - 1) + max(0.0, abs(x[4]) - 1) + max(0.0, abs(x[5]) - 1)
+            if not full:
+                excess += max(0.0, x[2] - 1.0) + max(0.0, -x[2])
+            return r + 10.0 * excess * np.sign(r + 1e-12)
+
+        x0 = self._cache.get(key) if key is not None else None
+        if x0 is None:
+            q = 0.5 * 0.0023769 * (V**2) * (p_amb / 101325.0) * (t_std / T) / (t_std / 288.15)
+            S = self.geometry.reference.wing_area_m2 / FT**2
+            cl = cond.weight_lb / max(q * S, 1e-6)
+            a0 = max(-0.1, min(0.25, (cl - 0.25 - 0.02 * cond.flaps_deg) / 4.8))
+            x0 = np.array([a0, 0.0, a0 + 0.08 if full else 0.65, 0.0, 0.0, 0.0])
+        x0 = np.array(x0, float)
+        self.fdm.suspend_integration()
+        sol = root(residual, x0, method="hybr", options={"xtol": 1e-10, "maxfev": 400})
+        x = sol.x
+        if not np.all(np.isfinite(x)):
+            x = x0
+        r = residual(x)          # leaves the trimmed state in JSBSim
+        res = float(np.max(np.abs(r)))
+        out = TrimResult(cond, True, residual=res, evals=sol.nfev + 1)
+        for k, p in OUTPUTS.items():
+            setattr(out, k, float(fdm[p]))
+        out.throttle = float(x[2]) if not full else cond.throttle
+        out.mixture = mix
+        out.pct_power = 100.0 * out.power_hp / (self.geometry.engine.max_power_w / 745.69987158227)
+        out.roc_geometric_fpm = float(fdm["velocities/h-dot-fps"]) * 60.0
+        out.roc_fpm = out.roc_geometric_fpm * t_std / T
+        out.torque_lbft = out.power_hp * 550.0 / max(out.rpm * 2 * math.pi / 60.0, 1e-6)
+        problems = []
+        if res > 2e-4 or not sol.success and res > 2e-4:
+            problems.append(f"no equilibrium (residual {res:.2g})")
+        for i, name in ((3, "elevator"), (4, "aileron"), (5, "rudder")):
+            if abs(x[i]) > CONTROL_LIMIT:
+                problems.append(f"{name} beyond its stop ({x[i]:+.2f} of travel)")
+        if not full and x[2] > 1.0 + 1e-4:
+            problems.append(f"needs more than full throttle ({x[2]:.2f})")
+        if not full and x[2] < -1e-4:
+            problems.append("needs less than idle throttle")
+        if not math.isfinite(out.rpm) or out.rpm < 100:
+            problems.append("engine not running")
+        if problems:
+            out.trimmed = False
+            out.reason = "; ".join(problems)
+            self._recover()
+        elif key is not None:
+            self._cache[key] = x.copy()
+        return out
+
+    def _flap_max_deg(self) -> float:
+        f = self.geometry.wing.control("flap")
+        return math.degrees(f.deflection_max_rad) if f else 1.0
+
+    def _recover(self) -> None:
+        """After a failed trim: clear NaN from the engine state before the next point."""
+        fdm = self.fdm
+        if not all(math.isfinite(fdm[p]) for p in ("propulsion/engine/engine-rpm", "propulsion/engine/map-inhg")):
+            fdm.reset_to_initial_conditions(0)
+            fdm["propulsion/set-running"] = -1
+            fdm.set_trim_status(True)
+
+    def full_throttle_equivalent(self, cond: Condition, key=None) -> float:
+        """Throttle a level point would need when full throttle is not enough:
+        1 + power deficit / full-throttle power (from a full-throttle trim at that speed)."""
+        c = replace(cond, mode="full_throttle", throttle=1.0)
+        r = self.trim(c, key=None if key is None else (key, "ft"))
+        if not r.trimmed or r.power_hp <= 0:
+            return 2.0
+        deficit_hp = max(0.0, -r.roc_geometric_fpm / 60.0 * cond.weight_lb / 550.0)
+        eta = r.thrust_lbf * r.ktas * KT / FT / 550.0 / r.power_hp if r.power_hp > 0 else 0.7
+        return 1.0 + deficit_hp / max(eta, 0.3) / r.power_hp

@@ -1,0 +1,896 @@
+"""Garmin G1000 flight-log import, air-data reduction and quasi-steady segment extraction.
+
+A G1000 log (one CSV file per power-on, written to the SD card of the MFD) looks like::
+
+    #airframe_info, log_version="1.00", airframe_name="Cessna 172S", ..., system_id="24B6FD7AC", ...
+    #yyy-mm-dd, hh:mm:ss,   hh:mm,  ident,      degrees,      degrees, ft Baro,  inch, ...
+      Lcl Date, Lcl Time, UTCOfst, AtvWpt,     Latitude,    Longitude,    AltB, BaroA, ...
+    2011-08-12, 09:59:07,  -05:00,       ,   47.8413467,  -96.6191635,   861.5, 29.83, ...
+
+``read_g1000`` turns it into a :class:`G1000Log` (airframe record, units, and a DataFrame with a
+``time_s`` column); ``extract_segments`` finds stretches of level cruise and full-throttle climb
+in which the aircraft is close enough to steady flight to be compared with a trimmed model;
+``segments_dataframe`` tabulates them and ``plot_log`` draws the flight with the segments shaded.
+
+Repeated timestamps
+-------------------
+The recorder writes about one row per second (3966 rows in 4038 s in the example log) but
+stamps each row with the whole second of its clock, so rows drift against the clock: 728 rows
+(18 %) repeat the second of the row before, and about 800 seconds have no row (steps of 0,
+1 and 2 s alternate). The rows sharing a second are distinct samples (attitude, RPM and
+vertical speed differ), so all rows are kept, and ``time_s`` spaces the ``n`` rows that share
+a second evenly inside it (``s, s + 1/n, ...``). Averaging them instead would throw away 18 %
+of the samples, understate the noise estimates used for weighting, and leave a 2 s hole
+next to each repeat; spacing keeps time strictly increasing with an error below one second,
+which is small against the 30 s or more of a segment.
+"""
+from __future__ import annotations
+
+import math
+import re
+import warnings
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import IO, Any, Sequence
+
+import numpy as np
+import pandas as pd
+
+from .errors import DataError, Problem
+from .units import FT, G0, GAMMA, KT, LAPSE, P0, R_AIR, T0
+
+__all__ = [
+    "G1000Log",
+    "G1000DataWarning",
+    "REQUIRED_CHANNELS",
+    "read_g1000",
+    "pressure_altitude_ft",
+    "isa_temperature_c",
+    "kcas_from_kias",
+    "ktas_from_kcas",
+    "SegmentCriteria",
+    "WeightAssumption",
+    "Segment",
+    "extract_segments",
+    "segments_dataframe",
+    "plot_log",
+]
+
+
+class G1000DataWarning(UserWarning):
+    """A recoverable problem in a G1000 log (a dropped line, an unreadable cell)."""
+
+
+# --------------------------------------------------------------------------------------------
+# Import
+# --------------------------------------------------------------------------------------------
+
+#: Channels a log must have for the calibration. TAS is not required: it is computed from
+#: AltB, BaroA, OAT and IAS (all required) by :func:`ktas_from_kcas`.
+REQUIRED_CHANNELS: tuple[str, ...] = (
+    "AltB", "BaroA", "OAT", "IAS", "VSpd", "Pitch", "Roll",
+    "E1 RPM", "E1 FFlow", "FQtyL", "FQtyR",
+)
+
+_TIME_COLUMNS = ("Lcl Date", "Lcl Time")
+_STRING_COLUMNS = frozenset({"Lcl Date", "Lcl Time", "UTCOfst"})
+
+#: Units accepted for channels the calibration reads (lower case, single spaces). A units
+#: line naming anything else for these channels is an error: the numbers would be misread.
+_ACCEPTED_UNITS: dict[str, frozenset[str]] = {
+    "AltB": frozenset({"ft baro", "ft"}),
+    "BaroA": frozenset({"inch", "inhg", "in hg", "in"}),
+    "OAT": frozenset({"deg c", "degc", "c"}),
+    "IAS": frozenset({"kt", "kts", "knots"}),
+    "TAS": frozenset({"kt", "kts", "knots"}),
+    "GndSpd": frozenset({"kt", "kts", "knots"}),
+    "VSpd": frozenset({"fpm", "ft/min"}),
+    "Pitch": frozenset({"deg"}),
+    "Roll": frozenset({"deg"}),
+    "E1 RPM": frozenset({"rpm"}),
+    "E1 FFlow": frozenset({"gph"}),
+    "FQtyL": frozenset({"gals", "gal"}),
+    "FQtyR": frozenset({"gals", "gal"}),
+}
+
+_MAX_LINE_WARNINGS = 20
+_HEADER_SEARCH_LINES = 50
+
+
+@dataclass(frozen=True, eq=False)
+class G1000Log:
+    """One imported G1000 log.
+
+    ``data`` holds one row per logged sample with a float ``time_s`` column [s] (seconds since
+    the first valid row, rows sharing a clock second spaced evenly inside it), the numeric
+    channels as float columns named as in the log without surrounding blanks (``AltB`` [ft],
+    ``BaroA`` [inHg], ``OAT`` [deg C], ``IAS``/``TAS``/``GndSpd`` [kt], ``VSpd`` [ft/min],
+    ``Pitch``/``Roll`` [deg], ``E1 RPM`` [rpm], ``E1 FFlow`` [US gal/h], ``FQtyL``/``FQtyR``
+    [US gal], ...) and the text channels (``Lcl Date``, ``Lcl Time``, ``AtvWpt``, ``HSIS``,
+    ``GPSfix``, ...) as strings. Blank cells are NaN.
+    """
+
+    path: str                   # file name, or "<stream>" for an unnamed text stream
+    airframe: dict[str, str]    # the #airframe_info record: airframe_name, system_id, ...
+    units: dict[str, str]       # column -> unit from the units line ({} when it is missing)
+    data: pd.DataFrame          # samples; time_s [s] since the first valid row
+    start_time: datetime | None = None  # local date and time of the first valid row
+
+    @property
+    def duration_s(self) -> float:
+        """Time from the first to the last row [s]."""
+        if self.data.empty:
+            return 0.0
+        return float(self.data["time_s"].iloc[-1] - self.data["time_s"].iloc[0])
+
+
+def _split(line: str) -> list[str]:
+    return [f.strip() for f in line.split(",")]
+
+
+def _parse_airframe(line: str) -> dict[str, str]:
+    body = line.split(",", 1)[1] if "," in line else ""
+    out: dict[str, str] = {}
+    for m in re.finditer(r'([A-Za-z_][\w.]*)\s*=\s*(?:"([^"]*)"|([^,]*))', body):
+        value = m.group(2) if m.group(2) is not None else m.group(3)
+        out[m.group(1)] = value.strip()
+    return out
+
+
+def _read_text(source: str | Path | IO[str]) -> tuple[str, str]:
+    if hasattr(source, "read"):
+        text = source.read()  # type: ignore[union-attr]
+        if isinstance(text, bytes):
+            text = text.decode("utf-8-sig", errors="replace")
+        name = str(getattr(source, "name", "<stream>"))
+        return name, text.lstrip("\ufeff")
+    path = Path(source)  # type: ignore[arg-type]
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise DataError(path, [Problem("", f"cannot read file: {exc.strerror or exc}")]) from exc
+    return str(path), raw.decode("utf-8-sig", errors="replace")
+
+
+def _warn_lines(source: str, messages: list[str]) -> None:
+    for msg in messages[:_MAX_LINE_WARNINGS]:
+        warnings.warn(f"{source}: {msg}", G1000DataWarning, stacklevel=3)
+    if len(messages) > _MAX_LINE_WARNINGS:
+        warnings.warn(f"{source}: ... and {len(messages) - _MAX_LINE_WARNINGS} more such problems",
+                      G1000DataWarning, stacklevel=3)
+
+
+def read_g1000(source: str | Path | IO[str]) -> G1000Log:
+    """Read a Garmin G1000 CSV flight log from a file path or a text stream.
+
+    Tolerated, with a :class:`G1000DataWarning` naming the line where something is dropped:
+    blank cells (NaN), blanks around cells, blank lines, a missing units line, a trailing comma,
+    rows sharing a timestamp (see the module docstring), a truncated last line (dropped), rows
+    with the wrong number of fields or an unreadable date/time (dropped), rows whose clock steps
+    backwards (dropped), unreadable numbers in a numeric channel (NaN).
+
+    Raises :class:`DataError` listing every problem when the input is empty, is not a G1000 log
+    (no ``#airframe_info`` line and no column header with ``Lcl Date`` and ``Lcl Time``), lacks
+    required channels (all listed, see :data:`REQUIRED_CHANNELS`), states units other than the
+    expected ones for a required channel, or has no valid data row.
+    """
+    name, text = _read_text(source)
+    if not text.strip():
+        raise DataError(name, [Problem("", "file is empty")])
+
+    lines = text.split("\n")
+    ends_with_newline = text.endswith("\n")
+    lines = [ln[:-1] if ln.endswith("\r") else ln for ln in lines]
+    if ends_with_newline:
+        lines = lines[:-1]
+
+    # --- preamble: airframe record, units line, column header --------------------------------
+    airframe: dict[str, str] = {}
+    airframe_seen = False
+    comment_lines: list[tuple[int, str]] = []  # '#' lines before the header
+    header_idx: int | None = None
+    header: list[str] = []
+    for idx, line in enumerate(lines[:_HEADER_SEARCH_LINES]):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            if stripped.lower().startswith("#airframe_info"):
+                airframe_seen = True
+                airframe = _parse_airframe(stripped)
+            else:
+                comment_lines.append((idx, stripped))
+            continue
+        fields = _split(stripped)
+        if "Lcl Date" in fields and "Lcl Time" in fields:
+            header_idx, header = idx, fields
+            break
+        if not airframe_seen:
+            break  # the first real line of a G1000 log is the airframe, units or header line
+
+    if header_idx is None:
+        if airframe_seen:
+            msg = "no column header line with 'Lcl Date' and 'Lcl Time' after '#airframe_info'"
+        else:
+            msg = ("not a Garmin G1000 log: no '#airframe_info' line and no column header "
+                   "with 'Lcl Date' and 'Lcl Time'")
+        raise DataError(name, [Problem("", msg)])
+
+    trailing_comma = len(header) > 1 and header[-1] == ""
+    if trailing_comma:
+        header = header[:-1]
+    n_fields = len(header)
+
+    problems: list[Problem] = []
+    seen: set[str] = set()
+    for col in header:
+        if col == "":
+            problems.append(Problem(f"line {header_idx + 1}", "empty column name in the header"))
+        elif col in seen:
+            problems.append(Problem(f"line {header_idx + 1}", f"column {col!r} appears twice"))
+        seen.add(col)
+    missing = [c for c in REQUIRED_CHANNELS if c not in seen]
+    if missing:
+        problems.append(Problem(f"line {header_idx + 1}",
+                                "missing required channel(s): " + ", ".join(missing)))
+
+    line_warnings: list[str] = []
+    units: dict[str, str] = {}
+    if comment_lines:
+        u_idx, u_line = comment_lines[-1]
+        u_fields = _split(u_line[1:])
+        if len(u_fields) == n_fields + 1 and u_fields[-1] == "":
+            u_fields = u_fields[:-1]
+        if len(u_fields) != n_fields:
+            line_warnings.append(f"line {u_idx + 1}: units line has {len(u_fields)} fields, header "
+                                 f"has {n_fields}; units matched by position where possible")
+        units = {col: u for col, u in zip(header, u_fields) if col}
+        for col, accepted in _ACCEPTED_UNITS.items():
+            unit = " ".join(units.get(col, "").lower().split())
+            if unit and unit not in accepted:
+                problems.append(Problem(f"line {u_idx + 1}, column {col}",
+                                        f"unit {units[col]!r}, expected one of {sorted(accepted)}"))
+    if problems:
+        raise DataError(name, problems)
+
+    # --- data rows ---------------------------------------------------------------------------
+    last_nonblank = max((i for i, ln in enumerate(lines) if ln.strip()), default=-1)
+    rows: list[list[str]] = []
+    row_lines: list[int] = []
+    for idx in range(header_idx + 1, len(lines)):
+        line = lines[idx]
+        stripped = line.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        fields = _split(line)
+        if len(fields) == n_fields + 1 and fields[-1] == "":
+            fields = fields[:-1]
+        if len(fields) != n_fields:
+            if idx == last_nonblank and len(fields) < n_fields:
+                line_warnings.append(f"line {idx + 1}: last line is truncated ({len(fields)} of "
+                                     f"{n_fields} fields); row dropped")
+            else:
+                line_warnings.append(f"line {idx + 1}: {len(fields)} fields, expected {n_fields}; "
+                                     "row dropped")
+            continue
+        rows.append(fields)
+        row_lines.append(idx + 1)
+
+    frame = pd.DataFrame(rows, columns=header, dtype=object)
+    frame = frame.replace("", np.nan)
+    line_no = np.asarray(row_lines, dtype=int)
+
+    # timestamps
+    stamp = (frame["Lcl Date"].fillna("").astype(str) + " "
+             + frame["Lcl Time"].fillna("").astype(str))
+    ts = pd.to_datetime(stamp, format="ISO8601", errors="coerce")
+    bad = ts.isna().to_numpy()
+    for k in np.flatnonzero(bad):
+        line_warnings.append(f"line {line_no[k]}: unreadable date/time {stamp.iloc[k].strip()!r}; "
+                             "row dropped")
+    keep = ~bad
+    # clock stepping backwards: drop rows until it passes the last good time again
+    secs = np.full(len(ts), np.nan)
+    secs[keep] = (ts[keep] - ts[keep].iloc[0]).dt.total_seconds().to_numpy() if keep.any() else []
+    running = -np.inf
+    for k in range(len(secs)):
+        if not keep[k]:
+            continue
+        if secs[k] < running:
+            keep[k] = False
+            line_warnings.append(f"line {line_no[k]}: time {stamp.iloc[k].strip()} is earlier than "
+                                 "the row before; row dropped")
+        else:
+            running = secs[k]
+
+    _warn_lines(name, line_warnings)
+    line_warnings = []
+
+    frame = frame.loc[keep].reset_index(drop=True)
+    secs = secs[keep]
+    line_no = line_no[keep]
+    if frame.empty:
+        raise DataError(name, [Problem("", "no valid data rows")])
+    ts = ts[keep].reset_index(drop=True)
+    start_time = ts.iloc[0].to_pydatetime()
+    secs = secs - secs[0]
+
+    # spread rows sharing a second evenly inside it
+    group = np.concatenate([[0], np.cumsum(np.diff(secs) != 0)])
+    pos = pd.Series(np.arange(len(secs))).groupby(group).cumcount().to_numpy()
+    size = np.bincount(group)[group]
+    time_s = secs + pos / size
+
+    # numeric channels
+    out: dict[str, Any] = {"time_s": time_s.astype(float)}
+    for col in header:
+        cells = frame[col]
+        if col in _STRING_COLUMNS:
+            out[col] = cells.astype(object)
+            continue
+        num = pd.to_numeric(cells, errors="coerce")
+        unreadable = (cells.notna() & num.isna()).to_numpy()
+        if not unreadable.any():
+            out[col] = num.astype(float).to_numpy()
+        elif col in _ACCEPTED_UNITS or unreadable.sum() <= 0.01 * cells.notna().sum():
+            for k in np.flatnonzero(unreadable):
+                line_warnings.append(f"line {line_no[k]}, column {col}: unreadable number "
+                                     f"{cells.iloc[k]!r}; set to NaN")
+            out[col] = num.astype(float).to_numpy()
+        else:
+            out[col] = cells.astype(object)
+    _warn_lines(name, line_warnings)
+
+    data = pd.DataFrame(out)
+    for col in REQUIRED_CHANNELS:
+        if data[col].isna().all():
+            warnings.warn(f"{name}: required channel {col!r} has no values", G1000DataWarning,
+                          stacklevel=2)
+    return G1000Log(path=name, airframe=airframe, units=units, data=data, start_time=start_time)
+
+
+# --------------------------------------------------------------------------------------------
+# Air data
+# --------------------------------------------------------------------------------------------
+
+STD_BARO_INHG = 29.92                 # [inHg] standard altimeter setting
+_K_FT = LAPSE * FT / T0               # [1/ft] ISA temperature lapse / T0 = 6.8756e-6
+_N_EXP = G0 / (R_AIR * LAPSE)         # [-] ISA pressure exponent = 5.2559
+_A0_KT = math.sqrt(GAMMA * R_AIR * T0) / KT   # [kt] ISA sea-level speed of sound, 661.5
+
+
+def pressure_altitude_ft(alt_baro_ft: Any, baro_setting_inhg: Any) -> Any:
+    """Pressure altitude [ft] from indicated altitude ``AltB`` [ft] at altimeter setting ``BaroA``.
+
+    The altimeter shows the ISA altitude of the static pressure ``p`` referred to the set
+    pressure: ``p = p_set * (1 - 6.8756e-6 * AltB) ** 5.2559``. Pressure altitude is the same
+    relation solved for ``p`` with 29.92 inHg set. Works on scalars and arrays.
+    """
+    h = np.asarray(alt_baro_ft, dtype=float)
+    p_set = np.asarray(baro_setting_inhg, dtype=float)
+    p = p_set * (1.0 - _K_FT * h) ** _N_EXP
+    hp = (1.0 - (p / STD_BARO_INHG) ** (1.0 / _N_EXP)) / _K_FT
+    return float(hp) if hp.ndim == 0 else hp
+
+
+def isa_temperature_c(pressure_alt_ft: Any) -> Any:
+    """ISA temperature [deg C] at a pressure altitude [ft] (troposphere)."""
+    t = T0 - LAPSE * FT * np.asarray(pressure_alt_ft, dtype=float) - 273.15
+    return float(t) if t.ndim == 0 else t
+
+
+def kcas_from_kias(kias: Any, table: tuple[Sequence[float], Sequence[float]] | None = None) -> Any:
+    """Calibrated airspeed [kt] from indicated airspeed [kt].
+
+    Without ``table`` this is the identity (the G1000 ADC output is taken as calibrated). With
+    ``table = (kias_points, kcas_points)`` (e.g. the POH airspeed calibration, flaps up) the
+    correction ``kcas - kias`` is interpolated linearly and held constant beyond the table ends.
+    """
+    v = np.asarray(kias, dtype=float)
+    if table is not None:
+        xi = np.asarray(table[0], dtype=float)
+        yi = np.asarray(table[1], dtype=float)
+        if xi.ndim != 1 or xi.shape != yi.shape or xi.size < 1 or np.any(np.diff(xi) <= 0):
+            raise ValueError("airspeed calibration table needs two equally long sequences with "
+                             "strictly increasing KIAS")
+        v = v + np.interp(v, xi, yi - xi)
+    return float(v) if v.ndim == 0 else v
+
+
+def ktas_from_kcas(kcas: Any, pressure_alt_ft: Any, oat_c: Any) -> Any:
+    """True airspeed [kt] from calibrated airspeed [kt], pressure altitude [ft] and OAT [deg C].
+
+    Compressible (subsonic) relations: impact pressure from CAS at sea-level ISA,
+    ``qc = p0 ((1 + 0.2 (Vc/a0)^2)^3.5 - 1)``; Mach number from ``qc`` and the static pressure
+    of the pressure altitude; TAS = Mach * speed of sound at OAT.
+    """
+    vc = np.asarray(kcas, dtype=float)
+    hp = np.asarray(pressure_alt_ft, dtype=float)
+    t_k = np.asarray(oat_c, dtype=float) + 273.15
+    qc = P0 * ((1.0 + 0.2 * (vc / _A0_KT) ** 2) ** 3.5 - 1.0)
+    p = P0 * (1.0 - _K_FT * hp) ** _N_EXP
+    mach = np.sqrt(np.maximum(5.0 * ((qc / p + 1.0) ** (2.0 / 7.0) - 1.0), 0.0))
+    v = np.sign(vc) * mach * np.sqrt(GAMMA * R_AIR * t_k) / KT
+    return float(v) if v.ndim == 0 else v
+
+
+# --------------------------------------------------------------------------------------------
+# Segments
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class SegmentCriteria:
+    """Criteria for quasi-steady segments. Every window must meet all criteria of its kind.
+
+    All segments (pointwise, every sample):
+      * airborne: ``IAS >= min_airborne_ias_kt`` (40 kt), ``GndSpd >= min_airborne_gnd_speed_kt``
+        (30 kt, when logged), and ``AltB`` at least ``min_height_above_field_ft`` (300 ft) above
+        the field: the median baro altitude of the ground runs (``IAS`` below the airborne
+        limit) before and after the sample, the higher of the two. This leaves out the take-off
+        and landing rolls, ground effect and the first part of the climb-out, in which the
+        take-off flaps may still be down (the log has no flap channel);
+      * wings level: ``|Roll| < max_abs_roll_deg`` (10 deg);
+      * AltB, BaroA, OAT, IAS, VSpd, Pitch, Roll and E1 RPM logged;
+      * no time gap between samples longer than ``max_gap_s`` (5 s).
+    Level cruise (window):
+      * duration ``>= min_cruise_duration_s`` (30 s);
+      * ``|mean VSpd| < max_cruise_abs_mean_vs_fpm`` (100 ft/min);
+      * altitude drift ``< max_cruise_alt_drift_ft`` (100 ft): slope of a straight line fitted
+        to AltB over time, times the duration;
+      * std of IAS ``< max_cruise_ias_std_kt`` (2 kt), std of E1 RPM ``< max_cruise_rpm_std`` (25);
+      * fuel flow logged and positive at every sample.
+    Full-throttle climb (window):
+      * duration ``>= min_climb_duration_s`` (30 s);
+      * mean VSpd ``> min_climb_mean_vs_fpm`` (300 ft/min);
+      * E1 RPM ``>= min_climb_rpm`` (2250, a fixed-pitch C172 at full throttle in a Vy climb
+        turns about 2300-2450) at every sample, std of E1 RPM ``< max_climb_rpm_std`` (25);
+      * std of IAS ``< max_climb_ias_std_kt`` (3 kt);
+      * ``Pitch > min_climb_pitch_deg`` (0 deg) at every sample;
+      * ``IAS >= min_climb_ias_kt`` (65 kt) at every sample: leaves out Vx and flaps-down
+        climbs (C172S: Vx 62 KIAS, Vy 74 KIAS at sea level), which the POH climb data are not
+        for.
+    Transients (both kinds): over the first and the last ``edge_s`` (5 s) of a window the
+    mean IAS, E1 RPM, VSpd and Pitch may differ from the window mean by at most
+    ``edge_max_ias_dev_kt`` (1.5 kt), ``edge_max_rpm_dev`` (30), ``edge_max_vs_dev_fpm``
+    (250 ft/min) and ``edge_max_pitch_dev_deg`` (1.5 deg), so that a window does not reach into
+    a level-off, a power change or an acceleration.
+
+    Search: the samples meeting the pointwise criteria form runs; in each run the longest window
+    meeting the window criteria is taken, and the parts of the run before and after it are
+    searched again, so segments are maximal (cannot be extended) and do not overlap. Cruise
+    windows are searched first; climb windows cannot overlap them (the VSpd criteria exclude
+    each other anyway).
+    """
+
+    min_cruise_duration_s: float = 30.0       # [s]
+    min_climb_duration_s: float = 30.0        # [s]
+    max_gap_s: float = 5.0                    # [s] longest time step inside a segment
+    min_airborne_ias_kt: float = 40.0         # [kt]
+    min_airborne_gnd_speed_kt: float = 30.0   # [kt] used only where GndSpd is logged
+    min_height_above_field_ft: float = 300.0  # [ft] above the AltB of the neighbouring ground runs
+    max_abs_roll_deg: float = 10.0            # [deg]
+    max_cruise_abs_mean_vs_fpm: float = 100.0  # [ft/min]
+    max_cruise_alt_drift_ft: float = 100.0    # [ft]
+    max_cruise_ias_std_kt: float = 2.0        # [kt]
+    max_cruise_rpm_std: float = 25.0          # [rpm]
+    min_climb_mean_vs_fpm: float = 300.0      # [ft/min]
+    min_climb_rpm: float = 2250.0             # [rpm]
+    max_climb_rpm_std: float = 25.0           # [rpm]
+    max_climb_ias_std_kt: float = 3.0         # [kt]
+    min_climb_pitch_deg: float = 0.0          # [deg]
+    min_climb_ias_kt: float = 65.0            # [kt]
+    edge_s: float = 5.0                       # [s]
+    edge_max_ias_dev_kt: float = 1.5          # [kt]
+    edge_max_rpm_dev: float = 30.0            # [rpm]
+    edge_max_vs_dev_fpm: float = 250.0        # [ft/min]
+    edge_max_pitch_dev_deg: float = 1.5       # [deg]
+
+
+@dataclass(frozen=True)
+class WeightAssumption:
+    """Assumed loading for the weight estimate; the G1000 logs fuel but not weight.
+
+    ``weight = empty_weight_lb + occupants_lb + baggage_lb + fuel_gal * fuel_density_lb_per_gal``.
+    The defaults are ASSUMPTIONS, not records: the C172S standard empty weight of the POH
+    (1663 lb; the actual aircraft's weight-and-balance record differs), two occupants
+    (instructor and student) at the FAA standard adult weight of 170 lb each, no baggage, and
+    avgas at 6.0 lb/US gal. Change them when the actual loading is known.
+    """
+
+    empty_weight_lb: float = 1663.0          # [lb] C172S standard empty weight (POH)
+    occupants_lb: float = 340.0              # [lb] assumed: 2 x 170 lb (FAA standard adult)
+    baggage_lb: float = 0.0                  # [lb] assumed
+    fuel_density_lb_per_gal: float = 6.0     # [lb/US gal] avgas
+
+    def weight_lb(self, fuel_gal: float) -> float:
+        """Gross weight [lb] with ``fuel_gal`` [US gal] on board."""
+        return (self.empty_weight_lb + self.occupants_lb + self.baggage_lb
+                + fuel_gal * self.fuel_density_lb_per_gal)
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A quasi-steady stretch of flight. Values are means over the window."""
+
+    kind: str                 # 'cruise' | 'climb'
+    t_start_s: float          # [s] time_s of the first sample
+    t_end_s: float            # [s] time_s of the last sample
+    duration_s: float         # [s] t_end_s - t_start_s
+    n_samples: int            # [-]
+    pressure_alt_ft: float    # [ft] pressure altitude (AltB referred to 29.92 inHg)
+    oat_c: float              # [deg C]
+    isa_dev_c: float          # [deg C] OAT - ISA temperature at the pressure altitude
+    kias: float               # [kt]
+    kcas: float               # [kt]
+    ktas: float               # [kt] from pressure altitude, OAT and CAS
+    vs_fpm: float             # [ft/min] mean VSpd
+    rpm: float                # [rpm]
+    fuel_flow_gph: float      # [US gal/h]
+    pitch_deg: float          # [deg]
+    roll_deg: float           # [deg]
+    fuel_gal: float           # [US gal] FQtyL + FQtyR
+    weight_lb: float          # [lb] from WeightAssumption and fuel_gal
+    ktas_logged: float = math.nan   # [kt] mean of the logged TAS (NaN if not logged)
+    std: dict[str, float] = field(default_factory=dict)  # sample std devs, keys as the fields
+
+
+_STD_KEYS = {  # Segment.std key -> column of the work frame
+    "alt_ft": "AltB", "pressure_alt_ft": "hp", "oat_c": "OAT", "kias": "IAS", "ktas": "ktas",
+    "vs_fpm": "VSpd", "rpm": "E1 RPM", "fuel_flow_gph": "E1 FFlow", "pitch_deg": "Pitch",
+    "roll_deg": "Roll",
+}
+
+
+class _Sums:
+    """Prefix sums for O(1) window means and variances over index ranges [i, j]."""
+
+    def __init__(self, x: np.ndarray):
+        self.off = float(np.mean(x)) if x.size else 0.0
+        xc = x - self.off
+        self.s1 = np.concatenate([[0.0], np.cumsum(xc)])
+        self.s2 = np.concatenate([[0.0], np.cumsum(xc * xc)])
+
+    def mean(self, i: Any, j: Any) -> Any:
+        return (self.s1[j + 1] - self.s1[i]) / (j - i + 1) + self.off
+
+    def std(self, i: Any, j: Any) -> Any:
+        n = j - i + 1
+        m = (self.s1[j + 1] - self.s1[i]) / n
+        return np.sqrt(np.maximum((self.s2[j + 1] - self.s2[i]) / n - m * m, 0.0))
+
+
+def _runs(mask: np.ndarray, t: np.ndarray, max_gap_s: float) -> list[tuple[int, int]]:
+    """Index ranges [a, b] of consecutive True samples without time gaps above max_gap_s."""
+    out: list[tuple[int, int]] = []
+    start: int | None = None
+    for k in range(len(mask)):
+        if mask[k] and start is not None and t[k] - t[k - 1] > max_gap_s:
+            out.append((start, k - 1))
+            start = k
+        elif mask[k] and start is None:
+            start = k
+        elif not mask[k] and start is not None:
+            out.append((start, k - 1))
+            start = None
+    if start is not None:
+        out.append((start, len(mask) - 1))
+    return out
+
+
+def _elevation(alt: np.ndarray, a: int, b: int) -> float:
+    seg = alt[a:b + 1]
+    return float(np.nanmedian(seg)) if np.isfinite(seg).any() else math.nan
+
+
+def _field_elevation(alt: np.ndarray, ground: np.ndarray) -> np.ndarray:
+    """Per sample: the higher of the median AltB of the ground runs before and after it
+    (NaN where there is none)."""
+    n = len(alt)
+    before = np.full(n, np.nan)
+    after = np.full(n, np.nan)
+    runs = _runs(ground, np.arange(n, dtype=float), math.inf)
+    for a, b in runs:            # later runs overwrite: the last run starting before
+        before[a:] = _elevation(alt, a, b)
+    for a, b in reversed(runs):  # earlier runs overwrite: the first run ending after
+        after[: b + 1] = _elevation(alt, a, b)
+    return np.fmax(before, after)
+
+
+class _Window:
+    """Window criteria of one segment kind over one run of samples."""
+
+    def __init__(self, kind: str, w: pd.DataFrame, c: SegmentCriteria):
+        self.kind = kind
+        self.c = c
+        self.t = w["time_s"].to_numpy(float)
+        self.ias = _Sums(w["IAS"].to_numpy(float))
+        self.rpm = _Sums(w["E1 RPM"].to_numpy(float))
+        self.vs = _Sums(w["VSpd"].to_numpy(float))
+        self.pitch = _Sums(w["Pitch"].to_numpy(float))
+        # prefix sums for the straight-line fit of AltB over time (shifted for accuracy)
+        tc = self.t - (self.t[0] if self.t.size else 0.0)
+        alt = w["AltB"].to_numpy(float)
+        hc = alt - (float(np.mean(alt)) if alt.size else 0.0)
+        self.st = np.concatenate([[0.0], np.cumsum(tc)])
+        self.stt = np.concatenate([[0.0], np.cumsum(tc * tc)])
+        self.sh = np.concatenate([[0.0], np.cumsum(hc)])
+        self.sth = np.concatenate([[0.0], np.cumsum(tc * hc)])
+        if kind == "cruise":
+            self.min_dur = c.min_cruise_duration_s
+        else:
+            self.min_dur = c.min_climb_duration_s
+
+    def _edge_ok(self, x: _Sums, a: Any, b: Any, whole: Any, tol: float) -> Any:
+        return np.abs(x.mean(a, b) - whole) <= tol
+
+    def valid(self, i: int, j: np.ndarray) -> np.ndarray:
+        """Which windows [i, j] (j an array of end indices) meet the window criteria."""
+        c, t = self.c, self.t
+        n = j - i + 1
+        ok = (t[j] - t[i]) >= self.min_dur
+        ias_std, rpm_std = self.ias.std(i, j), self.rpm.std(i, j)
+        vs_mean = self.vs.mean(i, j)
+        if self.kind == "cruise":
+            ok &= np.abs(vs_mean) < c.max_cruise_abs_mean_vs_fpm
+            ok &= ias_std < c.max_cruise_ias_std_kt
+            ok &= rpm_std < c.max_cruise_rpm_std
+            st = self.st[j + 1] - self.st[i]
+            stt = self.stt[j + 1] - self.stt[i]
+            sh = self.sh[j + 1] - self.sh[i]
+            sth = self.sth[j + 1] - self.sth[i]
+            den = n * stt - st * st
+            slope = np.where(den > 0, (n * sth - st * sh) / np.where(den > 0, den, 1.0), 0.0)
+            ok &= np.abs(slope) * (t[j] - t[i]) < c.max_cruise_alt_drift_ft
+        else:
+            ok &= vs_mean > c.min_climb_mean_vs_fpm
+            ok &= ias_std < c.max_climb_ias_std_kt
+            ok &= rpm_std < c.max_climb_rpm_std
+        # transients at both ends
+        i_edge = int(np.searchsorted(t, t[i] + c.edge_s, side="right") - 1)
+        j_edge = np.maximum(np.searchsorted(t, t[j] - c.edge_s, side="left"), i)
+        i_edge_arr = np.minimum(i_edge, j)
+        for x, tol in ((self.ias, c.edge_max_ias_dev_kt), (self.rpm, c.edge_max_rpm_dev),
+                       (self.vs, c.edge_max_vs_dev_fpm), (self.pitch, c.edge_max_pitch_dev_deg)):
+            whole = x.mean(i, j)
+            ok &= self._edge_ok(x, i, i_edge_arr, whole, tol)
+            ok &= self._edge_ok(x, j_edge, j, whole, tol)
+        return ok
+
+    def longest(self, lo: int, hi: int) -> tuple[int, int] | None:
+        """Longest valid window inside [lo, hi] (indices into the run)."""
+        t = self.t
+        best: tuple[int, int] | None = None
+        best_dur = -1.0
+        for i in range(lo, hi + 1):
+            if t[hi] - t[i] <= best_dur or t[hi] - t[i] < self.min_dur:
+                break
+            j0 = int(np.searchsorted(t, t[i] + max(self.min_dur, best_dur), side="left"))
+            j0 = max(j0, i)
+            if j0 > hi:
+                continue
+            j = np.arange(j0, hi + 1)
+            ok = self.valid(i, j)
+            if ok.any():
+                jb = int(j[np.flatnonzero(ok)[-1]])
+                dur = t[jb] - t[i]
+                if dur > best_dur:
+                    best, best_dur = (i, jb), dur
+        return best
+
+    def all_windows(self) -> list[tuple[int, int]]:
+        out: list[tuple[int, int]] = []
+        stack = [(0, len(self.t) - 1)]
+        while stack:
+            lo, hi = stack.pop()
+            if hi <= lo:
+                continue
+            found = self.longest(lo, hi)
+            if found is None:
+                continue
+            out.append(found)
+            stack.append((lo, found[0] - 1))
+            stack.append((found[1] + 1, hi))
+        return sorted(out)
+
+
+def _work_frame(log: G1000Log, kcas_table: tuple[Sequence[float], Sequence[float]] | None
+                ) -> pd.DataFrame:
+    d = log.data
+    w = pd.DataFrame({"time_s": d["time_s"].to_numpy(float)})
+    for col in ("AltB", "BaroA", "OAT", "IAS", "VSpd", "Pitch", "Roll", "E1 RPM", "E1 FFlow",
+                "FQtyL", "FQtyR", "TAS", "GndSpd"):
+        w[col] = pd.to_numeric(d[col], errors="coerce").to_numpy(float) if col in d else np.nan
+    w["hp"] = pressure_altitude_ft(w["AltB"].to_numpy(), w["BaroA"].to_numpy())
+    w["kcas"] = kcas_from_kias(w["IAS"].to_numpy(), kcas_table)
+    w["ktas"] = ktas_from_kcas(w["kcas"].to_numpy(), w["hp"].to_numpy(), w["OAT"].to_numpy())
+    w["fuel"] = w["FQtyL"] + w["FQtyR"]
+    return w
+
+
+def _segment(kind: str, w: pd.DataFrame, weight: WeightAssumption) -> Segment:
+    def m(col: str) -> float:
+        x = w[col].to_numpy(float)
+        return float(np.nanmean(x)) if np.isfinite(x).any() else math.nan
+
+    t0, t1 = float(w["time_s"].iloc[0]), float(w["time_s"].iloc[-1])
+    hp, oat, fuel = m("hp"), m("OAT"), m("fuel")
+    std = {key: float(np.nanstd(w[col].to_numpy(float), ddof=1))
+           if np.isfinite(w[col]).sum() > 1 else math.nan for key, col in _STD_KEYS.items()}
+    return Segment(
+        kind=kind, t_start_s=t0, t_end_s=t1, duration_s=t1 - t0, n_samples=len(w),
+        pressure_alt_ft=hp, oat_c=oat, isa_dev_c=oat - isa_temperature_c(hp),
+        kias=m("IAS"), kcas=m("kcas"), ktas=m("ktas"), vs_fpm=m("VSpd"), rpm=m("E1 RPM"),
+        fuel_flow_gph=m("E1 FFlow"), pitch_deg=m("Pitch"), roll_deg=m("Roll"), fuel_gal=fuel,
+        weight_lb=weight.weight_lb(fuel) if math.isfinite(fuel) else math.nan,
+        ktas_logged=m("TAS"), std=std,
+    )
+
+
+def extract_segments(log: G1000Log, criteria: SegmentCriteria = SegmentCriteria(), *,
+                     weight: WeightAssumption = WeightAssumption(),
+                     kcas_table: tuple[Sequence[float], Sequence[float]] | None = None,
+                     ) -> list[Segment]:
+    """Quasi-steady level-cruise and full-throttle-climb segments of a log, sorted by time.
+
+    The criteria and the search are described in :class:`SegmentCriteria`; ``weight`` gives the
+    loading assumed for ``Segment.weight_lb`` and ``kcas_table`` the airspeed calibration passed
+    to :func:`kcas_from_kias`.
+    """
+    c = criteria
+    w = _work_frame(log, kcas_table)
+    t = w["time_s"].to_numpy(float)
+    ias, gs, alt = w["IAS"].to_numpy(), w["GndSpd"].to_numpy(), w["AltB"].to_numpy()
+
+    with np.errstate(invalid="ignore"):
+        on_ground = ~(ias >= c.min_airborne_ias_kt)
+        field_alt = _field_elevation(alt, on_ground & np.isfinite(ias))
+        airborne = ~on_ground
+        airborne &= ~(gs < c.min_airborne_gnd_speed_kt)  # NaN GndSpd does not exclude
+        airborne &= ~(alt < field_alt + c.min_height_above_field_ft)
+        base = airborne & (np.abs(w["Roll"].to_numpy()) < c.max_abs_roll_deg)
+        for col in ("AltB", "BaroA", "OAT", "IAS", "VSpd", "Pitch", "Roll", "E1 RPM"):
+            base &= np.isfinite(w[col].to_numpy())
+        ff = w["E1 FFlow"].to_numpy()
+        cruise_mask = base & np.isfinite(ff) & (ff > 0)
+        climb_mask = (base & (w["E1 RPM"].to_numpy() >= c.min_climb_rpm)
+                      & (w["Pitch"].to_numpy() > c.min_climb_pitch_deg)
+                      & (ias >= c.min_climb_ias_kt))
+
+    found: list[tuple[str, int, int]] = []
+    taken = np.zeros(len(w), dtype=bool)
+    for kind, mask in (("cruise", cruise_mask), ("climb", climb_mask)):
+        for a, b in _runs(mask & ~taken, t, c.max_gap_s):
+            sub = w.iloc[a:b + 1]
+            for i, j in _Window(kind, sub, c).all_windows():
+                found.append((kind, a + i, a + j))
+                taken[a + i:a + j + 1] = True
+
+    found.sort(key=lambda s: s[1])
+    return [_segment(kind, w.iloc[i:j + 1], weight) for kind, i, j in found]
+
+
+_TABLE_COLUMNS = ["kind", "t_start_s", "t_end_s", "duration_s", "n_samples", "pressure_alt_ft",
+                  "oat_c", "isa_dev_c", "kias", "kcas", "ktas", "ktas_logged", "vs_fpm", "rpm",
+                  "gph", "pitch_deg", "roll_deg", "fuel_gal", "weight_lb"]
+
+
+def segments_dataframe(segments: Sequence[Segment]) -> pd.DataFrame:
+    """One row per segment, in time order.
+
+    Columns: ``kind, t_start_s, t_end_s, duration_s, n_samples, pressure_alt_ft, oat_c,
+    isa_dev_c, kias, kcas, ktas, ktas_logged, vs_fpm, rpm, gph`` (fuel flow)``, pitch_deg,
+    roll_deg, fuel_gal, weight_lb``, then the standard deviations ``alt_ft_std,
+    pressure_alt_ft_std, oat_c_std, kias_std, ktas_std, vs_fpm_std, rpm_std,
+    fuel_flow_gph_std, pitch_deg_std, roll_deg_std``. No segments give an empty frame with
+    these columns.
+    """
+    rows = []
+    for s in segments:
+        row = {col: getattr(s, "fuel_flow_gph" if col == "gph" else col) for col in _TABLE_COLUMNS}
+        row.update({f"{k}_std": v for k, v in s.std.items()})
+        rows.append(row)
+    std_cols = [f"{k}_std" for k in _STD_KEYS]
+    return pd.DataFrame(rows, columns=_TABLE_COLUMNS + std_cols)
+
+
+# --------------------------------------------------------------------------------------------
+# Plot
+# --------------------------------------------------------------------------------------------
+
+_SEGMENT_COLOURS = {"cruise": "tab:green", "climb": "tab:orange"}
+PLOT_PANELS = ("altitude", "airspeed", "vertical speed", "pitch", "rpm", "fuel flow")
+
+
+def plot_log(log: G1000Log, segments: Sequence[Segment], *, model: pd.DataFrame | None = None,
+             ax: Sequence[Any] | None = None) -> Any:
+    """Plot a log against time with the segments shaded; return the matplotlib Figure.
+
+    Six stacked panels sharing the time axis [min]: altitude (AltB and pressure altitude),
+    airspeed (IAS, logged TAS, computed KTAS), vertical speed, pitch, E1 RPM and fuel flow.
+    Cruise segments are shaded green, climbs orange, each labelled with its number. ``model``,
+    a DataFrame with one row per segment and columns ``t_start_s``, ``rpm``, ``roc_fpm`` and
+    ``pitch_deg`` (NaN where a value does not apply), is drawn as black markers over the
+    segment it belongs to (matched on ``t_start_s``), on the RPM, vertical-speed and pitch panels.
+    ``ax`` may give six Axes to draw into; otherwise a new Figure is made without pyplot (no
+    display is needed; it renders with Agg on ``savefig``).
+    """
+    from matplotlib.figure import Figure  # imported late: reading logs does not need matplotlib
+
+    if ax is None:
+        fig = Figure(figsize=(11, 13), layout="constrained")
+        axes = list(fig.subplots(len(PLOT_PANELS), 1, sharex=True))
+    else:
+        axes = list(ax)
+        if len(axes) != len(PLOT_PANELS):
+            raise ValueError(f"plot_log needs {len(PLOT_PANELS)} axes, got {len(axes)}")
+        fig = axes[0].figure
+
+    d = log.data
+    tm = d["time_s"].to_numpy(float) / 60.0
+
+    def col(name: str) -> np.ndarray:
+        return pd.to_numeric(d[name], errors="coerce").to_numpy(float) if name in d else \
+            np.full(len(d), np.nan)
+
+    hp = pressure_altitude_ft(col("AltB"), col("BaroA"))
+    ktas = ktas_from_kcas(kcas_from_kias(col("IAS")), hp, col("OAT"))
+    a_alt, a_spd, a_vs, a_pitch, a_rpm, a_ff = axes
+    a_alt.plot(tm, col("AltB"), lw=0.8, label="AltB")
+    a_alt.plot(tm, hp, lw=0.8, ls="--", label="pressure altitude")
+    a_alt.set_ylabel("altitude [ft]")
+    a_spd.plot(tm, col("IAS"), lw=0.8, label="IAS")
+    if "TAS" in d:
+        a_spd.plot(tm, col("TAS"), lw=0.8, label="TAS (logged)")
+    a_spd.plot(tm, ktas, lw=0.8, ls="--", label="KTAS (computed)")
+    a_spd.set_ylabel("airspeed [kt]")
+    a_vs.plot(tm, col("VSpd"), lw=0.6, label="VSpd")
+    a_vs.set_ylabel("vertical speed [ft/min]")
+    a_pitch.plot(tm, col("Pitch"), lw=0.6, label="Pitch")
+    a_pitch.set_ylabel("pitch [deg]")
+    a_rpm.plot(tm, col("E1 RPM"), lw=0.8, label="E1 RPM")
+    a_rpm.set_ylabel("engine speed [rpm]")
+    a_ff.plot(tm, col("E1 FFlow"), lw=0.8, label="E1 FFlow")
+    a_ff.set_ylabel("fuel flow [gal/h]")
+    a_ff.set_xlabel("time since start of log [min]")
+
+    shaded: set[str] = set()
+    for k, s in enumerate(segments, start=1):
+        colour = _SEGMENT_COLOURS.get(s.kind, "tab:grey")
+        for a in axes:
+            label = f"{s.kind} segment" if (a is a_alt and s.kind not in shaded) else None
+            a.axvspan(s.t_start_s / 60.0, s.t_end_s / 60.0, color=colour, alpha=0.25, lw=0,
+                      label=label)
+        shaded.add(s.kind)
+        a_alt.annotate(f"{s.kind[:2]}{k}", xy=((s.t_start_s + s.t_end_s) / 120.0, 1.0),
+                       xycoords=("data", "axes fraction"), ha="center", va="bottom", fontsize=7)
+
+    if model is not None and len(model):
+        missing = [c for c in ("t_start_s", "rpm", "roc_fpm", "pitch_deg") if c not in model]
+        if missing:
+            raise ValueError("model DataFrame lacks column(s): " + ", ".join(missing))
+        starts = np.array([s.t_start_s for s in segments], dtype=float)
+        labelled = False
+        for _, row in model.iterrows():
+            t_start = float(row["t_start_s"])
+            k = int(np.argmin(np.abs(starts - t_start))) if starts.size else -1
+            if k >= 0 and abs(starts[k] - t_start) <= 1.0:
+                t_a, t_b = segments[k].t_start_s / 60.0, segments[k].t_end_s / 60.0
+            else:
+                t_a = t_b = t_start / 60.0
+            for a, name in ((a_rpm, "rpm"), (a_vs, "roc_fpm"), (a_pitch, "pitch_deg")):
+                v = float(row[name])
+                if not math.isfinite(v):
+                    continue
+                a.plot([t_a, t_b], [v, v], color="k", lw=1.5)
+                a.plot([(t_a + t_b) / 2.0], [v], "kD", ms=5,
+                       label="model" if not labelled and a is a_rpm else None)
+            labelled = True
+
+    for a in axes:
+        a.grid(True, lw=0.3)
+        if a.get_legend_handles_labels()[0]:
+            a.legend(loc="upper right", fontsize=7)
+    title = log.airframe.get("airframe_name", "G1000 log")
+    fig.suptitle(f"{title}: {Path(log.path).name}", fontsize=10)
+    return fig

@@ -1,0 +1,612 @@
+"""The one module that knows JSBSim's XML: aircraft, engine and propeller files.
+
+It writes what the preprocessors computed (SI inside Python) in JSBSim units with explicit
+``unit=`` attributes, declares every calibration factor as a persistent property with its
+bounds and doc beside it, and reads/edits factor values in an existing file.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Iterable, Mapping
+
+import numpy as np
+from lxml import etree
+
+from .aero.model import AeroModel, Table
+from .engine import PistonParams
+from .errors import ModelError
+from .factors import FACTORS, REGISTRY, Factor, FactorSet
+from .geometry import AircraftGeometry
+from .propeller import PropellerTables
+from .units import FT, G0, IN, LB_PER_GAL_AVGAS, LBF, LBM, SLUG, US_GAL
+
+E = etree.Element
+M2_TO_FT2 = 1.0 / FT**2
+
+
+def fmt(x: float, digits: int = 6) -> str:
+    """Stable number formatting (same bytes on every run)."""
+    x = float(x)
+    if x == 0.0 or not math.isfinite(x):
+        return "0" if x == 0.0 else repr(x)
+    s = f"{x:.{digits}g}"
+    if "e" in s:
+        s = f"{x:.{digits + 4}f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
+
+
+def sub(parent, tag: str, text: str | None = None, **attrib) -> etree._Element:
+    el = etree.SubElement(parent, tag, {k: str(v) for k, v in attrib.items()})
+    if text is not None:
+        el.text = f" {text} "
+    return el
+
+
+def comment(parent, text: str) -> None:
+    parent.append(etree.Comment(f" {text} "))
+
+
+def location(parent, name: str | None, xyz_m, tag: str = "location") -> etree._Element:
+    el = sub(parent, tag, unit="IN", **({"name": name} if name else {}))
+    for axis, v in zip("xyz", np.asarray(xyz_m) / IN):
+        sub(el, axis, fmt(v, 5))
+    return el
+
+
+# --------------------------------------------------------------------------- function DSL
+def P(name: str):
+    el = E("property")
+    el.text = f" {name} "
+    return el
+
+
+def V(x: float):
+    el = E("value")
+    el.text = f" {fmt(x)} "
+    return el
+
+
+def op(tag: str, *args):
+    el = E(tag)
+    for a in args:
+        el.append(a)
+    return el
+
+
+def product(*a):
+    return op("product", *a)
+
+
+def sum_(*a):
+    return op("sum", *a)
+
+
+def diff(*a):
+    return op("difference", *a)
+
+
+def quot(a, b):
+    return op("quotient", a, b)
+
+
+def cos_(a):
+    return op("cos", a)
+
+
+def sin_(a):
+    return op("sin", a)
+
+
+def sqrt_(a):
+    return op("sqrt", a)
+
+
+def table(t: Table, row_prop: str, col_prop: str | None = None):
+    el = E("table")
+    sub(el, "independentVar", row_prop, lookup="row")
+    if t.col is not None:
+        sub(el, "independentVar", col_prop, lookup="column")
+    lines = []
+    if t.col is not None:
+        lines.append("          " + " ".join(f"{fmt(c, 5):>10}" for c in t.col))
+        for r, row in zip(t.row, t.data):
+            lines.append(f"{fmt(r, 5):>9} " + " ".join(f"{fmt(v, 5):>10}" for v in row))
+    else:
+        for r, v in zip(t.row, t.data):
+            lines.append(f"{fmt(r, 5):>9} {fmt(v, 6):>12}")
+    td = sub(el, "tableData")
+    td.text = "\n" + "\n".join(lines) + "\n        "
+    return el
+
+
+def function(parent, name: str, description: str, expr) -> etree._Element:
+    f = sub(parent, "function", name=name)
+    sub(f, "description", description)
+    f.append(expr)
+    return f
+
+
+# --------------------------------------------------------------------------- names
+ALPHA = "aero/alpha-deg"
+SHIFT = "aero/calibration/alpha-shift-deg"
+FLAP = "fcs/flap-pos-deg"
+ELEV = "fcs/elevator-pos-deg"
+AIL = "fcs/aileron-pos-deg"
+RUD = "fcs/rudder-pos-deg"
+ALPHA_H = "aero/ht/alpha-deg"
+LOOKUP = {"alpha": ALPHA, "shift": SHIFT, "flap": FLAP, "elevator": ELEV, "aileron": AIL, "rudder": RUD,
+          "alpha_h": ALPHA_H}
+
+
+def T(model: AeroModel, name: str):
+    t = model.tables[name]
+    return table(t, LOOKUP[t.row_name], LOOKUP.get(t.col_name) if t.col_name else None)
+
+
+def fp(f: Factor) -> etree._Element:
+    return P(f.property)
+
+
+def K(name: str):
+    return P(REGISTRY[name].property)
+
+
+# --------------------------------------------------------------------------- aircraft
+def aircraft_xml(geom: AircraftGeometry, aero: AeroModel, *, engine_file: str, propeller_file: str,
+                 piston: PistonParams, factors: FactorSet, inertia_empty: np.ndarray,
+                 travel_comment: str = "") -> etree._ElementTree:
+    root = E("fdm_config", name=geom.title, version="2.0", release="ALPHA")
+    root.text = "\n"
+    hdr = sub(root, "fileheader")
+    sub(hdr, "author", "jsbsim-calib (generated)")
+    sub(hdr, "filecreationdate", "2026-11-21")
+    sub(hdr, "version", "1")
+    sub(hdr, "description", f"{geom.title}: strip-theory aerodynamics, BEM propeller, FGPiston engine")
+    sub(hdr, "note", f"Generated from {geom.path.parent.name}/{geom.path.name} by 'jsbsim-calib generate "
+                     f"{geom.name}'. Edit the geometry file and regenerate, or edit the calibration "
+                     "properties below by hand. Public sources are cited in the geometry file.")
+
+    met = sub(root, "metrics")
+    sub(met, "wingarea", fmt(aero.S_m2 * M2_TO_FT2), unit="FT2")
+    sub(met, "wingspan", fmt(aero.b_m / FT), unit="FT")
+    sub(met, "chord", fmt(aero.cbar_m / FT), unit="FT")
+    sub(met, "htailarea", fmt(geom.horizontal_tail.area_m2 * M2_TO_FT2), unit="FT2")
+    sub(met, "htailarm", fmt(aero.const("ht_arm_x") / FT), unit="FT")
+    sub(met, "vtailarea", fmt(geom.vertical_tail.area_m2 * M2_TO_FT2), unit="FT2")
+    sub(met, "vtailarm", fmt(aero.const("vt_arm_x") / FT), unit="FT")
+    comment(met, "AERORP: the wing's mean quarter chord; aerodynamic moments below are about it")
+    location(met, "AERORP", aero.aerorp_m)
+    location(met, "EYEPOINT", geom.mass.stations[0].location_m + np.array([0.0, -0.35, 0.75]) if geom.mass.stations
+             else aero.aerorp_m)
+    location(met, "VRP", np.zeros(3))
+
+    mb = sub(root, "mass_balance")
+    comment(mb, "Inertia: radii of gyration (geometry [mass]) applied at max weight, minus the default loading "
+                "and full fuel, so the loaded aircraft at max weight has Ixx = b^2 W Rx^2/(4g) etc.")
+    for tag, v in zip(("ixx", "iyy", "izz"), inertia_empty):
+        sub(mb, tag, fmt(v / (SLUG * FT**2)), unit="SLUG*FT2")
+    sub(mb, "ixz", "0", unit="SLUG*FT2")
+    sub(mb, "emptywt", fmt(geom.mass.empty_mass_kg / LBM), unit="LBS")
+    location(mb, "CG", geom.mass.empty_cg_m)
+    comment(mb, "pointmass 0 is the payload jsbsim-calib sets (weight and station) to reach a test's weight and CG")
+    pm = sub(mb, "pointmass", name="calibration payload")
+    sub(pm, "weight", "0", unit="LBS")
+    location(pm, None, np.array([geom.operations.poh_cg_m, 0.0, 0.0]))
+    for st in geom.mass.stations:
+        pm = sub(mb, "pointmass", name=st.name)
+        sub(pm, "weight", fmt(st.mass_kg / LBM), unit="LBS")
+        location(pm, None, st.location_m)
+
+    gr = sub(root, "ground_reactions")
+    for c in geom.gear:
+        ct = sub(gr, "contact", type=c.type, name=c.name)
+        location(ct, None, c.location_m)
+        static, dynamic = (0.8, 0.5) if c.type == "BOGEY" else (1.0, 1.0)
+        sub(ct, "static_friction", fmt(static))
+        sub(ct, "dynamic_friction", fmt(dynamic))
+        sub(ct, "rolling_friction", "0.02")
+        sub(ct, "spring_coeff", fmt(c.spring_n_per_m / (LBF / FT)), unit="LBS/FT")
+        sub(ct, "damping_coeff", fmt(c.damping_n_s_per_m / (LBF / FT)), unit="LBS/FT/SEC")
+        if c.damping_rebound_n_s_per_m is not None:
+            sub(ct, "damping_coeff_rebound", fmt(c.damping_rebound_n_s_per_m / (LBF / FT)), unit="LBS/FT/SEC")
+        sub(ct, "max_steer", fmt(math.degrees(c.max_steer_rad)), unit="DEG")
+        sub(ct, "brake_group", c.brake_group)
+        sub(ct, "retractable", "0")
+
+    pr = sub(root, "propulsion")
+    en = sub(pr, "engine", file=engine_file)
+    for i in range(len(geom.tanks)):
+        sub(en, "feed", str(i))
+    th = sub(en, "thruster", file=propeller_file)
+    sub(th, "sense", str(geom.propeller.sense))
+    location(th, None, geom.propeller.location_m)
+    orient = sub(th, "orient", unit="DEG")
+    for a in ("roll", "pitch", "yaw"):
+        sub(orient, a, "0")
+    for i, t in enumerate(geom.tanks):
+        tk = sub(pr, "tank", type="FUEL", number=str(i))
+        comment(tk, f"{t.name} tank, {fmt(t.capacity_m3 / US_GAL)} US gal AVGAS")
+        location(tk, None, t.location_m)
+        cap_lb = t.capacity_m3 / US_GAL * LB_PER_GAL_AVGAS
+        sub(tk, "capacity", fmt(cap_lb), unit="LBS")
+        sub(tk, "contents", fmt(cap_lb), unit="LBS")
+        sub(tk, "unusable", fmt(t.unusable_m3 / US_GAL * LB_PER_GAL_AVGAS), unit="LBS")
+        sub(tk, "type", geom.fuel_type)
+
+    _calibration_system(root, factors, piston)
+    _fcs(root, geom, travel_comment)
+    _aerodynamics(root, geom, aero)
+    return etree.ElementTree(root)
+
+
+def _calibration_system(root, factors: FactorSet, piston: PistonParams) -> None:
+    sy = sub(root, "system", name="calibration")
+    comment(sy, "Calibration factors of the method (persistent: a reset keeps them). Edit a value by hand to "
+                "change the model; bounds and the equation of the method are given beside each. Factors marked "
+                "'baked' act through the propeller tables: change them with 'jsbsim-calib generate'.")
+    for f in FACTORS:
+        bounds = f"[{fmt(f.lower)}, {fmt(f.upper)}] {f.unit}".rstrip()
+        tag = " baked into the propeller tables;" if f.baked else ""
+        comment(sy, f"{f.name}: {f.doc}. Acts on {f.applies_to}. Bounds {bounds}, neutral {fmt(f.neutral)};{tag}")
+        el = sub(sy, "property", f.property, value=fmt(factors[f.name], 10), persistent="true")
+    ch = sub(sy, "channel", name="engine calibration")
+    comment(ch, "Volumetric efficiency: base value x K_HP x K_FF x sqrt(T/T_std(pressure altitude)) (power "
+                "follows sqrt(T_std/T) at a given pressure altitude, Lycoming's rule); indicated SFC x K_FF "
+                "so that K_FF changes fuel flow, not power")
+    fn = sub(ch, "fcs_function", name="propulsion/calibration/volumetric-efficiency")
+    sub(fn, "description", "FGPiston volumetric efficiency with power and temperature calibration")
+    fun = sub(fn, "function")
+    t_std = diff(V(518.67), product(V(0.00356616), P("atmosphere/pressure-altitude")))
+    fun.append(product(V(piston.volumetric_efficiency), K("K_HP"), K("K_FF"),
+                       sqrt_(quot(P("atmosphere/T-R"), t_std))))
+    sub(fn, "output", "propulsion/engine/volumetric-efficiency")
+    fn = sub(ch, "fcs_function", name="propulsion/calibration/isfc")
+    sub(fn, "description", "FGPiston fuel consumption per indicated power with fuel-flow calibration")
+    fun = sub(fn, "function")
+    fun.append(product(V(piston.isfc_lb_hphr), K("K_FF")))
+    sub(fn, "output", "propulsion/engine/bsfc-lbs_hphr")
+
+
+def _surface_channel(fcs, name: str, inputs: list[str], lo_deg: float, hi_deg: float, out_deg: str, out_norm: str,
+                     note: str) -> None:
+    ch = sub(fcs, "channel", name=name)
+    comment(ch, note)
+    sm = sub(ch, "summer", name=f"fcs/{name.lower()}-sum")
+    for i in inputs:
+        sub(sm, "input", i)
+    clip = sub(sm, "clipto")
+    sub(clip, "min", "-1")
+    sub(clip, "max", "1")
+    sc = sub(ch, "aerosurface_scale", name=f"fcs/{name.lower()}-scale")
+    sub(sc, "input", f"fcs/{name.lower()}-sum")
+    sub(sc, "zero_centered", "true")
+    rng = sub(sc, "range")
+    sub(rng, "min", fmt(lo_deg))
+    sub(rng, "max", fmt(hi_deg))
+    sub(sc, "output", out_deg)
+    nm = sub(ch, "pure_gain", name=f"fcs/{name.lower()}-norm")
+    sub(nm, "input", out_deg)
+    sub(nm, "gain", fmt(1.0 / max(abs(lo_deg), abs(hi_deg))))
+    sub(nm, "output", out_norm)
+
+
+def _fcs(root, geom: AircraftGeometry, travel_comment: str) -> None:
+    fcs = sub(root, "flight_control", name="FCS")
+    comment(fcs, "Normalized commands (-1..1) map zero-centred onto the surface travel "
+                 f"(JSBSim signs: elevator + trailing edge down, aileron + roll right, rudder + trailing edge left). "
+                 f"{travel_comment}")
+    el = geom.horizontal_tail.control("elevator")
+    _surface_channel(fcs, "Pitch", ["fcs/elevator-cmd-norm", "fcs/pitch-trim-cmd-norm"],
+                     math.degrees(el.deflection_min_rad), math.degrees(el.deflection_max_rad), ELEV,
+                     "fcs/elevator-pos-norm", "elevator [deg], + trailing edge down")
+    ai = geom.wing.control("aileron")
+    _surface_channel(fcs, "Roll", ["fcs/aileron-cmd-norm", "fcs/roll-trim-cmd-norm"],
+                     math.degrees(ai.deflection_min_rad), math.degrees(ai.deflection_max_rad), AIL,
+                     "fcs/left-aileron-pos-norm", "effective aileron [deg], + right trailing edge up (roll right)")
+    ch = fcs.findall("channel")[-1]
+    g = sub(ch, "pure_gain", name="fcs/right-aileron-norm")
+    sub(g, "input", "fcs/left-aileron-pos-norm")
+    sub(g, "gain", "-1")
+    sub(g, "output", "fcs/right-aileron-pos-norm")
+    ru = geom.vertical_tail.control("rudder")
+    _surface_channel(fcs, "Yaw", ["fcs/rudder-cmd-norm", "fcs/yaw-trim-cmd-norm"],
+                     math.degrees(ru.deflection_min_rad), math.degrees(ru.deflection_max_rad), RUD,
+                     "fcs/rudder-pos-norm", "rudder [deg], + trailing edge left (nose-left yaw)")
+    fl = geom.wing.control("flap")
+    if fl is not None:
+        ch = sub(fcs, "channel", name="Flaps")
+        k = sub(ch, "kinematic", name="fcs/flaps-control")
+        sub(k, "input", "fcs/flap-cmd-norm")
+        tr = sub(k, "traverse")
+        dets = [math.degrees(d) for d in fl.detents_rad] or [0.0, math.degrees(fl.deflection_max_rad)]
+        span = max(dets) - min(dets)
+        prev = dets[0]
+        for d in dets:
+            s = sub(tr, "setting")
+            sub(s, "position", fmt(d))
+            sub(s, "time", fmt(fl.transit_time_s * (d - prev) / span if span else 0.0))
+            prev = d
+        sub(k, "output", FLAP)
+        nm = sub(ch, "pure_gain", name="fcs/flap-norm")
+        sub(nm, "input", FLAP)
+        sub(nm, "gain", fmt(1.0 / max(dets)))
+        sub(nm, "output", "fcs/flap-pos-norm")
+
+
+def _aerodynamics(root, geom: AircraftGeometry, m: AeroModel) -> None:
+    ae = sub(root, "aerodynamics")
+    S_ft2 = m.S_m2 * M2_TO_FT2
+    b_ft = m.b_m / FT
+    c_ft = m.cbar_m / FT
+    def force(*coef):
+        return product(P("aero/qbar-psf"), P("metrics/Sw-sqft"), *coef)
+
+    def moment(length: str, *coef):
+        return product(P("aero/qbar-psf"), P("metrics/Sw-sqft"), P(length), *coef)
+
+    comment(ae, "Strip-theory tables (jsbsim_calib.aero): coefficients on the wing area; moments about the "
+                "AERORP. Angles in degrees. Calibration factors (system 'calibration') act where the method puts "
+                "them: see each description.")
+    function(ae, SHIFT, "alpha_shift + alpha_shift_addl: added to the wing section angle (eq. 3.1, 3.27)",
+             sum_(K("alpha_shift"), K("alpha_shift_addl")))
+    # ---- wing
+    function(ae, "aero/wing/CL", "wing lift: K_cl_slope (CL_w(alpha, shift) + flaps) + K_cl_offset S_w/S (eq. 3.6)",
+             sum_(product(K("K_cl_slope"), sum_(T(m, "wing_CL"), T(m, "flap_dCL"))),
+                  product(K("K_cl_offset"), V(m.const("wing_area_ratio")))))
+    function(ae, "aero/wing/CD0", "wing profile drag: K_cd0_slope CD0_w + K_cd0_offset S_profile/S + flap "
+                                  "increment + K_dcd0_flaps (dCD0/dflap) flap (eq. 3.7, 3.42)",
+             sum_(product(K("K_cd0_slope"), T(m, "wing_CD0")),
+                  product(K("K_cd0_offset"), V(m.const("wing_profile_ratio"))),
+                  T(m, "flap_dCD0"),
+                  product(K("K_dcd0_flaps"), V(m.const("flap_dcd0_per_deg")), P(FLAP))))
+    function(ae, "aero/wing/CDi", "wing induced drag: K_cdi (CDi_w + flap increment) (eq. 3.9)",
+             product(K("K_cdi"), sum_(T(m, "wing_CDi"), T(m, "flap_dCDi"))))
+    function(ae, "aero/wing/CD", "wing drag", sum_(P("aero/wing/CD0"), P("aero/wing/CDi")))
+    function(ae, "aero/wing/Cm", "wing section moment K_cm_slope Cm_w + K_cm_offset sum(c dS)/(S c) + flap "
+                                 "increment + K_dcm_flaps (dcm/dflap) flap, plus the wing normal force about the "
+                                 "AERORP (eq. 3.30, 3.44)",
+             sum_(product(K("K_cm_slope"), T(m, "wing_Cm")),
+                  product(K("K_cm_offset"), V(m.const("wing_cm_ratio"))),
+                  T(m, "flap_dCm"),
+                  product(K("K_dcm_flaps"), V(m.const("flap_dcm_per_deg")), P(FLAP)),
+                  product(V(-m.const("wing_arm_x") / m.cbar_m),
+                          sum_(product(P("aero/wing/CL"), cos_(P("aero/alpha-rad"))),
+                               product(P("aero/wing/CD"), sin_(P("aero/alpha-rad")))))))
+    # ---- horizontal tail
+    arm_h = m.const("ht_arm_x")
+    function(ae, "aero/ht/alpha-lag-deg", "wing angle when the tail's air left the wing: alpha - alphadot l_h/V",
+             diff(P(ALPHA), product(V(math.degrees(1.0) * arm_h / FT), P("aero/alphadot-rad_sec"),
+                                    quot(V(1.0), P("velocities/vt-fps")))))
+    function(ae, "aero/ht/alpha-deg", "local angle of the horizontal tail: alpha - downwash (lagged by the tail "
+                                      "arm) + pitch rate x arm / V",
+             sum_(P(ALPHA),
+                  product(V(-1.0), table(m.tables["downwash"], "aero/ht/alpha-lag-deg", FLAP)),
+                  product(V(math.degrees(1.0) * arm_h / FT), P("velocities/q-aero-rad_sec"),
+                          quot(V(1.0), P("velocities/vt-fps")))))
+    function(ae, "aero/ht/eps-rad", "rotation of the local flow at the tail [rad]",
+             product(V(math.radians(1.0)), diff(P(ALPHA), P(ALPHA_H))))
+    eta = m.const("ht_eta")
+    b_e_ft = m.const("elevator_span") / FT
+    function(ae, "aero/ht/CL-local", "tail lift in its local flow: eta (CL_h + K_de_slope dCL_e) + elevator "
+                                     "circulation offset 2 K_de_offset b_e sqrt(eta)/(V S) (eq. 3.36)",
+             sum_(product(V(eta), sum_(T(m, "ht_CL"), product(K("K_de_slope"), T(m, "elev_dCL")))),
+                  product(V(2.0 * b_e_ft * math.sqrt(eta) / S_ft2 / FT**2), K("K_de_offset"),
+                          quot(V(1.0), P("velocities/vt-fps")))))
+    function(ae, "aero/ht/CD-local", "tail drag in its local flow: eta (K_cd0_slope CD0_h + K_cd0_offset "
+                                     "S_h/S + K_cdi CDi_h + elevator drag)",
+             product(V(eta), sum_(product(K("K_cd0_slope"), T(m, "ht_CD0")),
+                                  product(K("K_cd0_offset"), V(m.const("ht_profile_ratio"))),
+                                  product(K("K_cdi"), T(m, "ht_CDi")),
+                                  T(m, "elev_dCD"))))
+    function(ae, "aero/ht/CL", "tail lift, free-stream axes",
+             diff(product(P("aero/ht/CL-local"), cos_(P("aero/ht/eps-rad"))),
+                  product(P("aero/ht/CD-local"), sin_(P("aero/ht/eps-rad")))))
+    function(ae, "aero/ht/CD", "tail drag, free-stream axes",
+             sum_(product(P("aero/ht/CD-local"), cos_(P("aero/ht/eps-rad"))),
+                  product(P("aero/ht/CL-local"), sin_(P("aero/ht/eps-rad")))))
+    function(ae, "aero/ht/Cm", "tail forces about the AERORP and the tail section moment",
+             sum_(product(V(-arm_h / m.cbar_m),
+                          sum_(product(P("aero/ht/CL"), cos_(P("aero/alpha-rad"))),
+                               product(P("aero/ht/CD"), sin_(P("aero/alpha-rad"))))),
+                  product(V(m.const("ht_arm_z") / m.cbar_m),
+                          diff(product(P("aero/ht/CD"), cos_(P("aero/alpha-rad"))),
+                               product(P("aero/ht/CL"), sin_(P("aero/alpha-rad"))))),
+                  product(V(eta), sum_(T(m, "ht_Cm"), product(K("K_de_slope"), T(m, "elev_dCm"))))))
+    # ---- fuselage group and vertical tail
+    function(ae, "aero/body/CD", "fuselage and drag items: K_cd0_slope (CD_fus + CD_items) + K_cd0_offset "
+                                 "(eq. 3.8); fin: K_cd0_slope CD0_v + K_cd0_offset S_v/S",
+             sum_(product(K("K_cd0_slope"), sum_(T(m, "body_CD"), V(m.const("items_CD0")), V(m.const("vt_CD0")))),
+                  product(K("K_cd0_offset"), V(1.0 + m.const("vt_profile_ratio")))))
+    # ---- rates and lateral controls
+    def p_hat():
+        return product(P("aero/bi2vel"), P("velocities/p-aero-rad_sec"))
+
+    def r_hat():
+        return product(P("aero/bi2vel"), P("velocities/r-aero-rad_sec"))
+
+    def q_hat():
+        return product(P("aero/ci2vel"), P("velocities/q-aero-rad_sec"))
+
+    b_r_ft = m.const("rudder_span") / FT
+    function(ae, "aero/rudder/CY-offset", "rudder circulation offset: side force 2 K_dr_offset b_r/(V S) (eq. 3.36)",
+             product(V(2.0 * b_r_ft / S_ft2 / FT**2), K("K_dr_offset"), quot(V(1.0), P("velocities/vt-fps"))))
+    a2_ft2 = m.const("aileron_moment_arm2") / FT**2
+    function(ae, "aero/aileron/Cl-offset", "aileron circulation offset: roll 2 K_da_offset sum(b y)/(V S b) (eq. 3.36)",
+             product(V(2.0 * a2_ft2 / (S_ft2 * b_ft) / FT**2), K("K_da_offset"), quot(V(1.0), P("velocities/vt-fps"))))
+    function(ae, "aero/elevator/CL-offset", "(reported) elevator circulation offset lift", product(
+        V(2.0 * b_e_ft * math.sqrt(eta) / S_ft2 / FT**2), K("K_de_offset"), quot(V(1.0), P("velocities/vt-fps"))))
+
+    ax = sub(ae, "axis", name="LIFT")
+    function(ax, "aero/force/L_wing", "wing lift", force(P("aero/wing/CL")))
+    function(ax, "aero/force/L_ht", "horizontal-tail lift", force(P("aero/ht/CL")))
+    function(ax, "aero/force/L_body", "fuselage lift", force(T(m, "body_CL")))
+    function(ax, "aero/force/L_q", "wing lift due to pitch rate", force(T(m, "CL_q"), q_hat()))
+
+    ax = sub(ae, "axis", name="DRAG")
+    function(ax, "aero/force/D_wing", "wing drag", force(P("aero/wing/CD")))
+    function(ax, "aero/force/D_ht", "horizontal-tail drag", force(P("aero/ht/CD")))
+    function(ax, "aero/force/D_body", "fuselage, fin and drag items", force(P("aero/body/CD")))
+    function(ax, "aero/force/D_controls", "aileron and rudder drag",
+             force(sum_(T(m, "ail_dCD"), T(m, "rud_dCD"))))
+
+    ax = sub(ae, "axis", name="SIDE")
+    function(ax, "aero/force/Y_beta", "side force due to sideslip", force(T(m, "CY_beta"), P("aero/beta-rad")))
+    function(ax, "aero/force/Y_rates", "side force due to roll and yaw rate",
+             force(sum_(product(T(m, "CY_p"), p_hat()), product(T(m, "CY_r"), r_hat()))))
+    function(ax, "aero/force/Y_controls", "side force due to aileron and rudder (K_da/K_dr slope, eq. 3.36)",
+             force(sum_(product(K("K_da_slope"), T(m, "ail_dCY")), product(K("K_dr_slope"), T(m, "rud_dCY")),
+                        P("aero/rudder/CY-offset"))))
+
+    ax = sub(ae, "axis", name="ROLL")
+    function(ax, "aero/moment/l_beta", "dihedral effect", moment("metrics/bw-ft", T(m, "Cl_beta"), P("aero/beta-rad")))
+    function(ax, "aero/moment/l_rates", "roll damping and roll due to yaw rate",
+             moment("metrics/bw-ft", sum_(product(T(m, "Cl_p"), p_hat()), product(T(m, "Cl_r"), r_hat()))))
+    function(ax, "aero/moment/l_controls", "aileron (K_da slope/offset) and rudder (K_dr) roll",
+             moment("metrics/bw-ft", sum_(product(K("K_da_slope"), T(m, "ail_dCl")), P("aero/aileron/Cl-offset"),
+                                          product(K("K_dr_slope"), T(m, "rud_dCl")),
+                                          product(V(m.const("rudder_arm_z") / m.b_m), P("aero/rudder/CY-offset")))))
+    function(ax, "aero/moment/l_damping", "extra roll damping -K_Clp p b/(2V) (eq. 3.48)",
+             moment("metrics/bw-ft", V(-1.0), K("K_Clp"), p_hat()))
+
+    ax = sub(ae, "axis", name="PITCH")
+    function(ax, "aero/moment/m_wing", "wing", moment("metrics/cbarw-ft", P("aero/wing/Cm")))
+    function(ax, "aero/moment/m_ht", "horizontal tail", moment("metrics/cbarw-ft", P("aero/ht/Cm")))
+    function(ax, "aero/moment/m_body", "fuselage (Munk) and drag items below/above the AERORP",
+             moment("metrics/cbarw-ft", sum_(T(m, "body_Cm"),
+                                             product(K("K_cd0_slope"), V(m.const("items_CD0") * m.const("items_arm_z")
+                                                                         / m.cbar_m)),
+                                             product(K("K_cd0_slope"), T(m, "body_CD"),
+                                                     V(m.const("fus_arm_z") / m.cbar_m)))))
+    function(ax, "aero/moment/m_q", "wing pitch damping", moment("metrics/cbarw-ft", T(m, "Cm_q"), q_hat()))
+    function(ax, "aero/moment/m_damping", "extra pitch damping -K_Cmq q c/(2V) (eq. 3.51)",
+             moment("metrics/cbarw-ft", V(-1.0), K("K_Cmq"), q_hat()))
+
+    ax = sub(ae, "axis", name="YAW")
+    function(ax, "aero/moment/n_beta", "weathercock stability", moment("metrics/bw-ft", T(m, "Cn_beta"),
+                                                                        P("aero/beta-rad")))
+    function(ax, "aero/moment/n_rates", "yaw damping and yaw due to roll rate",
+             moment("metrics/bw-ft", sum_(product(T(m, "Cn_p"), p_hat()), product(T(m, "Cn_r"), r_hat()))))
+    function(ax, "aero/moment/n_controls", "aileron adverse yaw and rudder (K_da/K_dr, eq. 3.36)",
+             moment("metrics/bw-ft", sum_(product(K("K_da_slope"), T(m, "ail_dCn")),
+                                          product(K("K_dr_slope"), T(m, "rud_dCn")),
+                                          product(V(-m.const("vt_arm_x") / m.b_m), P("aero/rudder/CY-offset")))))
+    function(ax, "aero/moment/n_damping", "extra yaw damping -K_Cnr r b/(2V) (eq. 3.54)",
+             moment("metrics/bw-ft", V(-1.0), K("K_Cnr"), r_hat()))
+    function(ax, "aero/moment/n_pfactor", "P-factor N = -K_PF T (D/2) sin(alpha) [lbf ft] (eq. 3.38)",
+             product(V(-0.5 * geom.propeller.diameter_m / FT), K("K_PF"), P("propulsion/engine/thrust-lbs"),
+                     sin_(P("aero/alpha-rad"))))
+
+
+# --------------------------------------------------------------------------- engine / propeller
+def engine_xml(p: PistonParams, spec_note: str) -> etree._ElementTree:
+    root = E("piston_engine", name=p.name)
+    root.text = "\n"
+    comment(root, spec_note)
+    comment(root, "FGPiston parameters designed by jsbsim_calib.engine.design_piston: rated power at rated RPM, "
+                  "sea level, best-power mixture; friction so that full-throttle power follows Gagg-Farrar. "
+                  "The aircraft's 'calibration' system overrides volumetric-efficiency and bsfc each frame.")
+    sub(root, "minmp", fmt(p.min_map_inhg), unit="INHG")
+    sub(root, "maxmp", fmt(p.max_map_inhg), unit="INHG")
+    sub(root, "displacement", fmt(p.displacement_in3), unit="IN3")
+    sub(root, "bore", fmt(p.bore_in), unit="IN")
+    sub(root, "stroke", fmt(p.stroke_in), unit="IN")
+    sub(root, "cylinders", str(p.cylinders))
+    sub(root, "compression-ratio", fmt(p.compression_ratio))
+    sub(root, "maxhp", fmt(p.max_hp), unit="HP")
+    sub(root, "cycles", str(p.cycles))
+    sub(root, "idlerpm", fmt(p.idle_rpm))
+    sub(root, "maxrpm", fmt(p.max_rpm))
+    sub(root, "sparkfaildrop", "0.1")
+    sub(root, "volumetric-efficiency", fmt(p.volumetric_efficiency))
+    sub(root, "bsfc", fmt(p.isfc_lb_hphr), unit="LBS/HP*HR")
+    sub(root, "static-fmep", fmt(p.fmep_static_pa), unit="PA")
+    sub(root, "dynamic-fmep", fmt(p.fmep_dynamic_pa_per_mps), unit="PA")
+    sub(root, "static-friction", fmt(p.static_friction_hp), unit="HP")
+    sub(root, "peak-piston-speed", fmt(p.peak_piston_speed_fps))
+    sub(root, "ram-air-factor", fmt(p.ram_air_factor))
+    sub(root, "man-press-lag", fmt(p.man_press_lag_s))
+    sub(root, "starter-torque", fmt(0.4 * p.max_hp))
+    sub(root, "starter-rpm", fmt(2 * p.idle_rpm))
+    return etree.ElementTree(root)
+
+
+def propeller_xml(name: str, tables: PropellerTables, *, diameter_m: float, blades: int, ixx_kgm2: float,
+                  factors: Mapping[str, float], min_pitch: float | None = None, max_pitch: float | None = None,
+                  min_rpm: float | None = None, max_rpm: float | None = None, note: str = "") -> etree._ElementTree:
+    root = E("propeller", name=name)
+    root.text = "\n"
+    comment(root, note)
+    comment(root, "calibration (baked): " + ", ".join(f"{k}={fmt(v, 10)}" for k, v in factors.items()))
+    sub(root, "ixx", fmt(ixx_kgm2 / (SLUG * FT**2)), unit="SLUG*FT2")
+    sub(root, "diameter", fmt(diameter_m / IN), unit="IN")
+    sub(root, "numblades", str(blades))
+    sub(root, "gearratio", "1")
+    if tables.beta75_deg is not None:
+        sub(root, "minpitch", fmt(min_pitch))
+        sub(root, "maxpitch", fmt(max_pitch))
+        if min_rpm is not None:
+            sub(root, "minrpm", fmt(min_rpm))
+            sub(root, "maxrpm", fmt(max_rpm))
+    for tname, data in (("C_THRUST", tables.CT), ("C_POWER", tables.CP)):
+        t = sub(root, "table", name=tname, type="internal")
+        td = sub(t, "tableData")
+        if tables.beta75_deg is None:
+            rows = [f"{fmt(j, 5):>8} {fmt(v, 6):>12}" for j, v in zip(tables.J, data)]
+        else:
+            rows = ["         " + " ".join(f"{fmt(b, 5):>10}" for b in tables.beta75_deg)]
+            rows += [f"{fmt(j, 5):>8} " + " ".join(f"{fmt(v, 6):>10}" for v in row) for j, row in zip(tables.J, data)]
+        td.text = "\n" + "\n".join(rows) + "\n    "
+    return etree.ElementTree(root)
+
+
+def write(tree: etree._ElementTree, path: Path) -> None:
+    etree.indent(tree, space="  ")
+    data = etree.tostring(tree, pretty_print=True, xml_declaration=True, encoding="UTF-8")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(data)
+
+
+# --------------------------------------------------------------------------- reading / editing factors
+def read_factors(aircraft_xml_path: Path) -> FactorSet:
+    """Factor values declared in an aircraft file (missing ones stay neutral)."""
+    try:
+        tree = etree.parse(str(aircraft_xml_path))
+    except (OSError, etree.XMLSyntaxError) as exc:
+        raise ModelError(f"{aircraft_xml_path}: cannot read: {exc}") from None
+    by_prop = {f.property: f.name for f in FACTORS}
+    vals = {}
+    for el in tree.iter("property"):
+        name = (el.text or "").strip()
+        if name in by_prop and el.get("value") is not None:
+            vals[by_prop[name]] = float(el.get("value"))
+    return FactorSet(vals)
+
+
+def set_factor_values(tree: etree._ElementTree, factors: Mapping[str, float]) -> None:
+    """Write factor values into the property declarations of a parsed aircraft file."""
+    by_prop = {f.property: f.name for f in FACTORS}
+    found = set()
+    for el in tree.iter("property"):
+        name = (el.text or "").strip()
+        if name in by_prop and by_prop[name] in factors:
+            el.set("value", fmt(factors[by_prop[name]], 10))
+            found.add(by_prop[name])
+    missing = set(factors) - found
+    if missing:
+        raise ModelError(f"aircraft file lacks declarations for factors: {', '.join(sorted(missing))}")
+
+
+def read_baked_factors(propeller_xml_path: Path) -> dict[str, float]:
+    """Propeller factors recorded in a propeller file's 'calibration (baked)' comment."""
+    tree = etree.parse(str(propeller_xml_path))
+    for c in tree.getroot().iter(etree.Comment):
+        text = (c.text or "").strip()
+        if text.startswith("calibration (baked):"):
+            out = {}
+            for part in text.split(":", 1)[1].split(","):
+                if "=" in part:
+                    k, v = part.split("=")
+                    out[k.strip()] = float(v)
+            return out
+    return {}
