@@ -182,7 +182,9 @@ class FactorSet(Mapping[str, float]):
         return FactorSet(v)
 
     def vector(self, names: Sequence[str], normalized: bool = True) -> np.ndarray:
-        return np.array([REGISTRY[n].to_unit(self._v[n]) if normalized else self._v[n] for n in names])
+        x = np.array([REGISTRY[n].to_unit(self._v[n]) if normalized else self._v[n] for n in names])
+        # snap round-off to 0: scipy's trust region starts at |x0|_inf, which must not be 1e-16
+        return np.where(np.abs(x) < 1e-12, 0.0, x)
 
     def with_vector(self, names: Sequence[str], x: Iterable[float], normalized: bool = True) -> "FactorSet":
         v = dict(self._v)

@@ -38,6 +38,9 @@ from .units import FT, G0, KT, LB_PER_GAL_AVGAS, LBM, T0, LAPSE
 G_FT = G0 / FT
 R_EARTH_FT = 20925646.325  # JSBSim's reference radius for geopotential altitude (ft)
 CONTROL_LIMIT = 1.0 + 1e-6
+TRIM_AID = "external_reactions/trim-aid/magnitude"
+TRIM_AID_LBF = 300.0
+NEWTON_TOL = 2e-6        # accelerations in g (rotational in rad/s^2): a few hundredths of a fpm of climb
 
 
 @dataclass(frozen=True)
@@ -53,11 +56,11 @@ class Condition:
     cg_in: float | None = None            # None: the aircraft's POH CG
     flaps_deg: float = 0.0
     mode: str = "level"                   # level: throttle trims, vs given | full_throttle: flight path free
-    vs_fpm: float = 0.0                   # pressure-altitude rate for mode 'level'
+    vs_fpm: float = 0.0                   # vertical speed (geometric) for mode 'level'
     throttle: float = 1.0                 # for mode 'full_throttle'
     bank_deg: float = 0.0
     turn: str = "straight"                # straight (heading fixed) | coordinated
-    mixture: str | float = "cruise"       # cruise | climb (POH procedure) | explicit command
+    mixture: str | float = "cruise"       # POH procedure: cruise | climb | explicit mixture command
     fuel_fraction: float | None = None    # None: the aircraft's default for POH points
 
     def __post_init__(self):
@@ -89,8 +92,8 @@ class TrimResult:
     theta_deg: float = float("nan")
     phi_deg: float = float("nan")
     gamma_deg: float = float("nan")
-    roc_fpm: float = float("nan")           # pressure-altitude rate (what a VSI shows)
-    roc_geometric_fpm: float = float("nan")
+    roc_fpm: float = float("nan")           # rate of climb, geometric (tapeline) dh/dt
+    roc_pressure_fpm: float = float("nan")  # rate of change of pressure altitude (VSI)
     ktas: float = float("nan")
     kcas: float = float("nan")
     throttle: float = float("nan")
@@ -175,6 +178,7 @@ class Simulator:
 
     def _write_aircraft(self, factors: FactorSet) -> None:
         xmlmodel.set_factor_values(self._tree, factors)
+        xmlmodel.add_trim_aid(self._tree, self.geometry.propeller.location_m)
         xmlmodel.write(self._tree, self._box_paths.aircraft_xml)
 
     def _write_propeller(self, factors: FactorSet) -> None:
@@ -304,7 +308,7 @@ class Simulator:
         phi = math.radians(cond.bank_deg)
         t_std = float(isa_temperature(cond.pressure_alt_ft * FT))
         full = cond.mode == "full_throttle"
-        gamma = 0.0 if full else math.asin(max(-1.0, min(1.0, cond.vs_fpm / 60.0 * (T / t_std) / V)))
+        gamma = 0.0 if full else math.asin(max(-1.0, min(1.0, cond.vs_fpm / 60.0 / V)))
         omega = G_FT * math.tan(phi) / V if cond.turn == "coordinated" else 0.0
         scale = np.array([G_FT, G_FT, G_FT, 1.0, 1.0, 1.0])
 
@@ -326,6 +330,9 @@ class Simulator:
             fdm["ic/q-rad_sec"] = omega * math.sin(phi) * math.cos(th)
             fdm["ic/r-rad_sec"] = omega * math.cos(phi) * math.cos(th)
             fdm["fcs/throttle-cmd-norm"] = min(max(thr, 0.0), 1.0)
+            # beyond the throttle stops a thrust aid along the thrust line keeps the
+            # residual continuous (sandbox only): TRIM_AID_LBF per unit of throttle
+            fdm[TRIM_AID] = TRIM_AID_LBF * (min(thr, 0.0) + max(thr - 1.0, 0.0))
             fdm["fcs/elevator-cmd-norm"] = x[3]
             fdm["fcs/aileron-cmd-norm"] = x[4]
             fdm["fcs/rudder-cmd-norm"] = x[5]
@@ -341,53 +348,96 @@ class Simulator:
                 return np.full(6, 1e3)
             # keep the solver inside the physical ranges: continue the residual linearly past them
             excess = max(0.0, abs(x[3]) - 1) + max(0.0, abs(x[4]) - 1) + max(0.0, abs(x[5]) - 1)
-            if not full:
-                excess += max(0.0, x[2] - 1.0) + max(0.0, -x[2])
             return r + 10.0 * excess * np.sign(r + 1e-12)
 
-        x0 = self._cache.get(key) if key is not None else None
-        if x0 is None:
-            q = 0.5 * 0.0023769 * (V**2) * (p_amb / 101325.0) * (t_std / T) / (t_std / 288.15)
-            S = self.geometry.reference.wing_area_m2 / FT**2
-            cl = cond.weight_lb / max(q * S, 1e-6)
-            a0 = max(-0.1, min(0.25, (cl - 0.25 - 0.02 * cond.flaps_deg) / 4.8))
-            x0 = np.array([a0, 0.0, a0 + 0.08 if full else 0.65, 0.0, 0.0, 0.0])
-        x0 = np.array(x0, float)
+        q = 0.5 * 0.0023769 * (V**2) * (p_amb / 101325.0) * (t_std / T) / (t_std / 288.15)
+        S = self.geometry.reference.wing_area_m2 / FT**2
+        cl = cond.weight_lb / max(q * S, 1e-6)
+        a0 = max(-0.1, min(0.25, (cl - 0.25 - 0.02 * cond.flaps_deg) / 4.8))
+        cold = np.array([a0, 0.0, a0 + 0.08 if full else 0.65, 0.0, 0.0, 0.0])
         self.fdm.suspend_integration()
-        sol = root(residual, x0, method="hybr", options={"xtol": 1e-10, "maxfev": 400})
-        x = sol.x
-        if not np.all(np.isfinite(x)):
-            x = x0
+        best = None
+        nfev = 0
+        cached = self._cache.get(key) if key is not None else None
+        if cached is not None:
+            # warm start: Newton steps with the Jacobian kept from the last trim of this point
+            x, J = np.array(cached[0], float), cached[1]
+            fx = residual(x)
+            nfev += 1
+            for _ in range(8):
+                if float(np.max(np.abs(fx))) < NEWTON_TOL:
+                    break
+                try:
+                    x_new = x - np.linalg.solve(J, fx)
+                except np.linalg.LinAlgError:
+                    break
+                f_new = residual(x_new)
+                nfev += 1
+                if np.max(np.abs(f_new)) >= np.max(np.abs(fx)):
+                    break
+                x, fx = x_new, f_new
+            norm = float(np.max(np.abs(fx)))
+            best = (x, norm, J)
+        if best is None or best[1] > NEWTON_TOL:
+            starts = ([best[0]] if best is not None else []) + [cold]
+            for x0 in starts:
+                # finite-difference steps of 1e-4 (relative, absolute near 0): well above the
+                # engine steady-state noise, well below the scale of the solution
+                sol = root(residual, x0, method="hybr", options={"xtol": 1e-10, "maxfev": 300, "eps": 1e-8})
+                nfev += sol.nfev
+                x = sol.x if np.all(np.isfinite(sol.x)) else x0
+                fx = residual(x)
+                nfev += 1
+                norm = float(np.max(np.abs(fx)))
+                J = self._jacobian(residual, x, fx)
+                nfev += 6
+                if best is None or norm < best[1]:
+                    best = (x, norm, J)
+                if norm < 2e-4:
+                    break
+        x, _, J = best
         r = residual(x)          # leaves the trimmed state in JSBSim
         res = float(np.max(np.abs(r)))
-        out = TrimResult(cond, True, residual=res, evals=sol.nfev + 1)
+        out = TrimResult(cond, True, residual=res, evals=nfev + 1)
         for k, p in OUTPUTS.items():
             setattr(out, k, float(fdm[p]))
         out.throttle = float(x[2]) if not full else cond.throttle
+        out.extra["throttle_required"] = out.throttle
+        out.extra["trim_aid_lbf"] = float(fdm[TRIM_AID])
         out.mixture = mix
         out.pct_power = 100.0 * out.power_hp / (self.geometry.engine.max_power_w / 745.69987158227)
-        out.roc_geometric_fpm = float(fdm["velocities/h-dot-fps"]) * 60.0
-        out.roc_fpm = out.roc_geometric_fpm * t_std / T
+        out.roc_fpm = float(fdm["velocities/h-dot-fps"]) * 60.0
+        out.roc_pressure_fpm = out.roc_fpm * t_std / T
         out.torque_lbft = out.power_hp * 550.0 / max(out.rpm * 2 * math.pi / 60.0, 1e-6)
         problems = []
-        if res > 2e-4 or not sol.success and res > 2e-4:
+        if res > 2e-4:
             problems.append(f"no equilibrium (residual {res:.2g})")
         for i, name in ((3, "elevator"), (4, "aileron"), (5, "rudder")):
             if abs(x[i]) > CONTROL_LIMIT:
                 problems.append(f"{name} beyond its stop ({x[i]:+.2f} of travel)")
         if not full and x[2] > 1.0 + 1e-4:
-            problems.append(f"needs more than full throttle ({x[2]:.2f})")
+            problems.append(f"needs more than full throttle ({fdm[TRIM_AID]:.0f} lbf short)")
         if not full and x[2] < -1e-4:
             problems.append("needs less than idle throttle")
         if not math.isfinite(out.rpm) or out.rpm < 100:
             problems.append("engine not running")
+        fdm[TRIM_AID] = 0.0
         if problems:
             out.trimmed = False
             out.reason = "; ".join(problems)
             self._recover()
         elif key is not None:
-            self._cache[key] = x.copy()
+            self._cache[key] = (x.copy(), J)
         return out
+
+    @staticmethod
+    def _jacobian(residual, x, fx, h=1e-5):
+        J = np.empty((len(fx), len(x)))
+        for i in range(len(x)):
+            xi = np.array(x, float)
+            xi[i] += h
+            J[:, i] = (residual(xi) - fx) / h
+        return J
 
     def _flap_max_deg(self) -> float:
         f = self.geometry.wing.control("flap")
@@ -400,14 +450,3 @@ class Simulator:
             fdm.reset_to_initial_conditions(0)
             fdm["propulsion/set-running"] = -1
             fdm.set_trim_status(True)
-
-    def full_throttle_equivalent(self, cond: Condition, key=None) -> float:
-        """Throttle a level point would need when full throttle is not enough:
-        1 + power deficit / full-throttle power (from a full-throttle trim at that speed)."""
-        c = replace(cond, mode="full_throttle", throttle=1.0)
-        r = self.trim(c, key=None if key is None else (key, "ft"))
-        if not r.trimmed or r.power_hp <= 0:
-            return 2.0
-        deficit_hp = max(0.0, -r.roc_geometric_fpm / 60.0 * cond.weight_lb / 550.0)
-        eta = r.thrust_lbf * r.ktas * KT / FT / 550.0 / r.power_hp if r.power_hp > 0 else 0.7
-        return 1.0 + deficit_hp / max(eta, 0.3) / r.power_hp

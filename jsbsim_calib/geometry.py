@@ -179,7 +179,7 @@ class EngineSpec:
     max_map_pa: float              # [Pa]
     min_map_pa: float              # [Pa]
     location_m: np.ndarray         # [m]
-    full_rich_below_m: float       # [m] pressure altitude below which climbs are full rich
+    full_rich_below_m: float = 0.0 # [m] pressure altitude below which POH climbs are full rich
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,10 @@ from .units import FT, G0, IN, LB_PER_GAL_AVGAS, LBF, LBM, SLUG, US_GAL
 
 E = etree.Element
 M2_TO_FT2 = 1.0 / FT**2
+# Parasite drag grows with lift as CDp (1 + 0.38 CL^2) (I. Kroo, Aircraft Design: Synthesis and
+# Analysis, "drag due to lift": the viscous part of lift-dependent drag). The wing strips
+# carry theirs in the section polars; this adds it to the fuselage, fin and drag items.
+KROO_K = 0.38
 
 
 def fmt(x: float, digits: int = 6) -> str:
@@ -251,15 +255,16 @@ def _calibration_system(root, factors: FactorSet, piston: PistonParams) -> None:
         comment(sy, f"{f.name}: {f.doc}. Acts on {f.applies_to}. Bounds {bounds}, neutral {fmt(f.neutral)};{tag}")
         el = sub(sy, "property", f.property, value=fmt(factors[f.name], 10), persistent="true")
     ch = sub(sy, "channel", name="engine calibration")
-    comment(ch, "Volumetric efficiency: base value x K_HP x K_FF x sqrt(T/T_std(pressure altitude)) (power "
-                "follows sqrt(T_std/T) at a given pressure altitude, Lycoming's rule); indicated SFC x K_FF "
-                "so that K_FF changes fuel flow, not power")
+    comment(ch, "Volumetric efficiency: base value x K_HP x K_FF x (T/T_std(pressure altitude))^(1-n), so that "
+                f"power follows (T_std/T)^n, n = {fmt(piston.temperature_exponent)}, at a given pressure altitude "
+                "(FGPiston's air flow alone gives n = 1); indicated SFC x K_FF so that K_FF changes fuel flow, "
+                "not power")
     fn = sub(ch, "fcs_function", name="propulsion/calibration/volumetric-efficiency")
     sub(fn, "description", "FGPiston volumetric efficiency with power and temperature calibration")
     fun = sub(fn, "function")
     t_std = diff(V(518.67), product(V(0.00356616), P("atmosphere/pressure-altitude")))
     fun.append(product(V(piston.volumetric_efficiency), K("K_HP"), K("K_FF"),
-                       sqrt_(quot(P("atmosphere/T-R"), t_std))))
+                       op("pow", quot(P("atmosphere/T-R"), t_std), V(1.0 - piston.temperature_exponent))))
     sub(fn, "output", "propulsion/engine/volumetric-efficiency")
     fn = sub(ch, "fcs_function", name="propulsion/calibration/isfc")
     sub(fn, "description", "FGPiston fuel consumption per indicated power with fuel-flow calibration")
@@ -350,13 +355,28 @@ def _aerodynamics(root, geom: AircraftGeometry, m: AeroModel) -> None:
                 "them: see each description.")
     function(ae, SHIFT, "alpha_shift + alpha_shift_addl: added to the wing section angle (eq. 3.1, 3.27)",
              sum_(K("alpha_shift"), K("alpha_shift_addl")))
+    # Reynolds number: tables are built at one Reynolds number per angle of attack; skin
+    # friction of a turbulent boundary layer scales as Re^-0.2 away from it.
+    mu = product(V(3.737e-7), op("pow", quot(P("atmosphere/T-R"), V(518.67)), V(1.5)),
+                 quot(V(518.67 + 198.72), sum_(P("atmosphere/T-R"), V(198.72))))
+    function(ae, "aero/reynolds-per-ft", "free-stream Reynolds number per foot (Sutherland viscosity)",
+             quot(product(P("atmosphere/rho-slugs_ft3"), P("velocities/vt-fps")), mu))
+
+    def re_factor(ref):
+        ratio = quot(P("aero/reynolds-per-ft"), ref)
+        return op("max", V(0.7), op("min", V(1.5), op("pow", op("max", ratio, V(0.01)), V(-0.2))))
+
+    function(ae, "aero/wing/re-factor", "profile-drag scale (Re/Re_table)^-0.2 of the wing strips",
+             re_factor(T(m, "wing_Re")))
+    function(ae, "aero/body/re-factor", "profile-drag scale (Re/Re_cruise)^-0.2 of tails and fuselage",
+             re_factor(V(m.const("cruise_Re_per_ft"))))
     # ---- wing
     function(ae, "aero/wing/CL", "wing lift: K_cl_slope (CL_w(alpha, shift) + flaps) + K_cl_offset S_w/S (eq. 3.6)",
              sum_(product(K("K_cl_slope"), sum_(T(m, "wing_CL"), T(m, "flap_dCL"))),
                   product(K("K_cl_offset"), V(m.const("wing_area_ratio")))))
-    function(ae, "aero/wing/CD0", "wing profile drag: K_cd0_slope CD0_w + K_cd0_offset S_profile/S + flap "
+    function(ae, "aero/wing/CD0", "wing profile drag: K_cd0_slope CD0_w Re-factor + K_cd0_offset S_profile/S + flap "
                                   "increment + K_dcd0_flaps (dCD0/dflap) flap (eq. 3.7, 3.42)",
-             sum_(product(K("K_cd0_slope"), T(m, "wing_CD0")),
+             sum_(product(K("K_cd0_slope"), T(m, "wing_CD0"), P("aero/wing/re-factor")),
                   product(K("K_cd0_offset"), V(m.const("wing_profile_ratio"))),
                   T(m, "flap_dCD0"),
                   product(K("K_dcd0_flaps"), V(m.const("flap_dcd0_per_deg")), P(FLAP))))
@@ -395,7 +415,7 @@ def _aerodynamics(root, geom: AircraftGeometry, m: AeroModel) -> None:
                           quot(V(1.0), P("velocities/vt-fps")))))
     function(ae, "aero/ht/CD-local", "tail drag in its local flow: eta (K_cd0_slope CD0_h + K_cd0_offset "
                                      "S_h/S + K_cdi CDi_h + elevator drag)",
-             product(V(eta), sum_(product(K("K_cd0_slope"), T(m, "ht_CD0")),
+             product(V(eta), sum_(product(K("K_cd0_slope"), T(m, "ht_CD0"), P("aero/body/re-factor")),
                                   product(K("K_cd0_offset"), V(m.const("ht_profile_ratio"))),
                                   product(K("K_cdi"), T(m, "ht_CDi")),
                                   T(m, "elev_dCD"))))
@@ -414,9 +434,13 @@ def _aerodynamics(root, geom: AircraftGeometry, m: AeroModel) -> None:
                                product(P("aero/ht/CL"), sin_(P("aero/alpha-rad"))))),
                   product(V(eta), sum_(T(m, "ht_Cm"), product(K("K_de_slope"), T(m, "elev_dCm"))))))
     # ---- fuselage group and vertical tail
-    function(ae, "aero/body/CD", "fuselage and drag items: K_cd0_slope (CD_fus + CD_items) + K_cd0_offset "
-                                 "(eq. 3.8); fin: K_cd0_slope CD0_v + K_cd0_offset S_v/S",
-             sum_(product(K("K_cd0_slope"), sum_(T(m, "body_CD"), V(m.const("items_CD0")), V(m.const("vt_CD0")))),
+    function(ae, "aero/body/CD", "fuselage, fin and drag items: K_cd0_slope (CD_fus + CD_fin + CD_items) "
+                                 "(1 + 0.38 CL^2) + K_cd0_offset (1 + S_v/S) (eq. 3.8). The (1 + 0.38 CL^2) is "
+                                 "the lift-dependent parasite drag of parts outside the wing strips (Kroo)",
+             sum_(product(K("K_cd0_slope"),
+                          sum_(product(sum_(T(m, "body_CD"), V(m.const("vt_CD0"))), P("aero/body/re-factor")),
+                               V(m.const("items_CD0"))),
+                          sum_(V(1.0), product(V(KROO_K), P("aero/wing/CL"), P("aero/wing/CL")))),
                   product(K("K_cd0_offset"), V(1.0 + m.const("vt_profile_ratio")))))
     # ---- rates and lateral controls
     def p_hat():
@@ -528,6 +552,13 @@ def engine_xml(p: PistonParams, spec_note: str) -> etree._ElementTree:
     sub(root, "man-press-lag", fmt(p.man_press_lag_s))
     sub(root, "starter-torque", fmt(0.4 * p.max_hp))
     sub(root, "starter-rpm", fmt(2 * p.idle_rpm))
+    from .engine import MIXTURE_FAR, mixture_efficiency
+    comment(root, "Mixture efficiency ME(fuel/air) = P(f) f_bp / f, P = brake power at constant air flow relative "
+                  "to best power (classical spark-ignition mixture curve, jsbsim_calib.engine)")
+    t = sub(root, "table", name="MIXTURE", type="internal")
+    td = sub(t, "tableData")
+    td.text = "\n" + "\n".join(f"      {fmt(f, 4):>7} {fmt(float(mixture_efficiency(f)), 5):>8}"
+                                 for f in MIXTURE_FAR) + "\n    "
     return etree.ElementTree(root)
 
 
@@ -565,6 +596,27 @@ def write(tree: etree._ElementTree, path: Path) -> None:
     data = etree.tostring(tree, pretty_print=True, xml_declaration=True, encoding="UTF-8")
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(data)
+
+
+def add_trim_aid(tree: etree._ElementTree, location_m) -> None:
+    """Add (once) a thrust-line force driven by ``external_reactions/trim-aid/magnitude`` [lbf].
+
+    Only the calibration sandbox uses it: a level point that needs more than full throttle
+    is trimmed at full throttle plus this force, which keeps the fit's residuals continuous
+    across the throttle stop and measures how far past it the point is.
+    """
+    root = tree.getroot()
+    er = root.find("external_reactions")
+    if er is not None and er.find("force[@name='trim-aid']") is not None:
+        return
+    if er is None:
+        er = E("external_reactions")
+        root.find("ground_reactions").addnext(er)
+    f = sub(er, "force", name="trim-aid", frame="BODY")
+    location(f, None, location_m)
+    d = sub(f, "direction")
+    for axis, v in zip("xyz", (1, 0, 0)):
+        sub(d, axis, str(v))
 
 
 # --------------------------------------------------------------------------- reading / editing factors

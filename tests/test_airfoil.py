@@ -95,8 +95,11 @@ def test_full_range_continuous_and_flat_plate_like(airfoils, name):
         src = dict(zip(p.alpha_deg, p.source))
         assert src[0.0] == "neuralfoil" and src[5.0] == "neuralfoil"
         assert src[45.0] == "viterna" and src[-45.0] == "viterna"
-        # drag grows from the attached minimum to the flat-plate maximum
-        assert p.cd_min < 0.012 and p.cd_min < p.coefficients(30.0)[1] < cd[2]
+        # drag grows from the attached minimum to the flat-plate maximum; a fixed-transition
+        # (fully turbulent) section has about twice the laminar minimum drag
+        from jsbsim_calib.airfoil import split_transition
+        limit = 0.012 if split_transition(p.name)[1] is None else 0.016
+        assert p.cd_min < limit and p.cd_min < p.coefficients(30.0)[1] < cd[2]
 
 
 def test_angles_outside_the_table_wrap_around(airfoils):

@@ -76,6 +76,9 @@ def reference_speed(geom: AircraftGeometry, CL: np.ndarray) -> np.ndarray:
     return np.sqrt(2.0 * geom.mass.max_mass_kg * G0 / (rho * geom.reference.wing_area_m2 * CLc))
 
 
+CRUISE_CL = 0.4     # lift coefficient of the reference cruise speed (tails, fuselage Reynolds number)
+
+
 def _reference_air():
     h = REFERENCE_ALTITUDE_M
     t = isa_temperature(h)
@@ -98,16 +101,20 @@ def _sweep(sm: StripModel, geom: AircraftGeometry, alphas_deg: np.ndarray, contr
     order = np.argsort(np.abs(alphas_deg - 2.0), kind="stable")
     sols: dict[int, object] = {}
     prev_pos = prev_neg = None
-    CL_guess = {}
     for idx in order:
         a = math.radians(alphas_deg[idx])
         g0 = prev_pos if alphas_deg[idx] >= 2.0 else prev_neg
-        cl_est = CL_guess.get(idx, 0.1 + 4.8 * (a + 0.03))
+        cl_est = 0.1 + 4.8 * (a + 0.03)
         for _ in range(2 if reynolds_from_lift else 1):
-            v = float(reference_speed(geom, np.array(cl_est)))
-            sm.set_reynolds(v, rho, mu)
+            if reynolds_from_lift:
+                sm.set_reynolds(float(reference_speed(geom, np.array(cl_est))), rho, mu)
             sol = sm.solve(a, beta, omega, controls, gamma0=g0)
-            cl_est = _coeffs(sm, sol, geom)["CL"] if reynolds_from_lift else cl_est
+            if not sol.converged:
+                # past the stall: try the linear start too and keep the better solution
+                alt = sm.solve(a, beta, omega, controls, gamma0=None)
+                if alt.converged or alt.residual < sol.residual:
+                    sol = alt
+            cl_est = _coeffs(sm, sol, geom)["CL"]
         sols[idx] = sol
         if sol.converged:
             if alphas_deg[idx] >= 2.0:
@@ -135,9 +142,12 @@ def wing_tables(geom: AircraftGeometry, airfoils: dict, model: AeroModel, n_half
     cos_dih = np.abs(st.e_span[:, 1])          # lift of a strip with dihedral tilts by the dihedral
     area = st.area
     delta = np.zeros(st.n)
+    re_per_m = np.zeros(nA)
     for i, sol in enumerate(sols):
         CLlin = _coeffs(sm, sol, geom)["CL"]
-        sm.set_reynolds(float(reference_speed(geom, np.array(CLlin))), rho, mu)
+        v_ref = float(reference_speed(geom, np.array(CLlin)))
+        re_per_m[i] = rho * v_ref / mu
+        sm.set_reynolds(v_ref, rho, mu)
         ai = sol.alpha_ind
         for j, s in enumerate(np.radians(SHIFT_DEG)):
             cl, cd, cm = sm.sections(sol.alpha_eff + s, delta)
@@ -153,6 +163,9 @@ def wing_tables(geom: AircraftGeometry, airfoils: dict, model: AeroModel, n_half
     model.tables["wing_CDi"] = Table("alpha", ALPHA_DEG, CDi, "wing induced drag", "shift", SHIFT_DEG)
     model.tables["wing_Cm"] = Table("alpha", ALPHA_DEG, CM, "wing section pitching moment (sum of strip cm)",
                                     "shift", SHIFT_DEG)
+    model.tables["wing_Re"] = Table("alpha", ALPHA_DEG, re_per_m * FT,
+                                    "Reynolds number per foot at which the wing tables were built (1-g flight "
+                                    "at max weight, reference altitude)")
     model.add_const("wing_area_ratio", np.sum(area) / S, "wing strip area / S_ref (weight of K_cl_offset)")
     model.add_const("wing_profile_ratio", np.sum(area[st.profile]) / S,
                     "wing strips with profile drag / S_ref (weight of K_cd0_offset)")
@@ -235,6 +248,8 @@ def tail_tables(geom: AircraftGeometry, airfoils: dict, model: AeroModel, eta: f
                                                math.degrees(elev.deflection_max_rad), 12), [0.0]]))
     nA, nE = len(ALPHA_H_DEG), len(de)
     tab = {k: np.zeros((nA, nE)) for k in ("CL", "CD0", "CDi", "Cm")}
+    rho, mu = _reference_air()
+    sm.set_reynolds(float(reference_speed(geom, np.array(CRUISE_CL))), rho, mu)
     for k, d in enumerate(de):
         sols = _sweep(sm, geom, ALPHA_H_DEG, controls={"elevator": math.radians(d)}, reynolds_from_lift=False)
         for i, sol in enumerate(sols):
@@ -332,7 +347,7 @@ def lateral_tables(geom: AircraftGeometry, airfoils: dict, model: AeroModel, eta
     st = sm.strips
     on_vt = st.surface == "vertical_tail"
     rho, mu = _reference_air()
-    sm.set_reynolds(float(reference_speed(geom, np.array(0.4))), rho, mu)
+    sm.set_reynolds(float(reference_speed(geom, np.array(CRUISE_CL))), rho, mu)
     _, cd, _ = sm.sections(np.zeros(st.n), np.zeros(st.n))
     model.add_const("vt_CD0", eta * np.sum(cd[on_vt] * st.area[on_vt]) / S, "vertical-tail profile drag on S_ref")
     model.add_const("vt_profile_ratio", np.sum(st.area[on_vt]) / S, "vertical-tail area / S_ref")
@@ -351,8 +366,10 @@ def lateral_tables(geom: AircraftGeometry, airfoils: dict, model: AeroModel, eta
 # --------------------------------------------------------------------------- 5. body
 def body_tables(geom: AircraftGeometry, model: AeroModel) -> None:
     rho, mu = _reference_air()
-    v = float(reference_speed(geom, np.array(0.35)))
+    v = float(reference_speed(geom, np.array(CRUISE_CL)))
     cd0 = body.fuselage_zero_lift_drag(geom, rho * v / mu)
+    model.add_const("cruise_Re_per_ft", rho * v / mu * FT,
+                    "Reynolds number per foot of the tail and fuselage drag (reference cruise)")
     a = np.radians(ALPHA_DEG)
     cn = body.fuselage_crossflow_normal_force(geom, a)
     cma = body.fuselage_pitch_slope_per_rad(geom)

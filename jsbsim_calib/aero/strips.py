@@ -53,6 +53,7 @@ class StripSolution:
     cd: np.ndarray
     cm: np.ndarray
     converged: bool
+    residual: float = 0.0      # max |lifting-line residual| of the circulation [m^2/s per unit speed]
 
     @property
     def alpha_eff(self) -> np.ndarray:
@@ -233,7 +234,8 @@ class StripModel:
             gamma, r, a_ind, norm = g_new, r_new, a_new, np.linalg.norm(r_new)
             converged = norm < 1e-10 * max(1.0, np.abs(gamma).max())
         cl, cd, cm = self.sections(alpha_geo - a_ind, delta)
-        return StripSolution(alpha, beta, gamma, U, alpha_geo, a_ind, cl, cd, cm, bool(converged))
+        return StripSolution(alpha, beta, gamma, U, alpha_geo, a_ind, cl, cd, cm, bool(converged),
+                             float(np.max(np.abs(r))))
 
     # ------------------------------------------------------------------ loads
     def strip_forces(self, sol: StripSolution, mask: np.ndarray | None = None) -> np.ndarray:

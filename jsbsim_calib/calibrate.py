@@ -1,0 +1,301 @@
+"""Calibration stages: least-squares fits of factors to reference data.
+
+``fit`` is the engine shared by every stage: factors normalized to [-1, 1] over their
+bounds (method 3.1.2), residuals divided by their tolerances, ``scipy.optimize.
+least_squares`` (trust-region reflective, bounded) with a deliberate finite-difference
+step, a progress line per iteration, and a result in the lmfit manner (initial -> final,
+bounds, "at boundary" flags, standard errors where the Jacobian allows, cost, evaluations,
+wall time).
+
+Stage 1 (``steady_stage``): 16 coupled aero/propeller/engine factors on a documented
+subset of POH climb and cruise points (climb error / 100 fpm, power / 5 points, RPM /
+50 rpm; a penalty per point for more than full throttle, 20 per failed trim), then K_FF
+alone against fuel flow (error / 5 %).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .data import METRICS, Dataset
+from .evaluate import KINDS
+from .factors import REGISTRY, FactorSet, stage_factors
+from .fdm import Condition, Simulator, TrimResult
+
+FAIL_PENALTY = 20.0          # per failed trim (method eq. 3.33)
+THROTTLE_TOL = 0.05          # throttle above 1 per 0.05 (eq. 3.32)
+
+
+@dataclass
+class FitResult:
+    """Outcome of one least-squares fit (one stage or step)."""
+
+    stage: str
+    names: list[str]
+    initial: FactorSet
+    final: FactorSet
+    cost_initial: float
+    cost_final: float
+    nfev: int
+    njev: int
+    status: int
+    message: str
+    wall_time_s: float
+    trims: int
+    stderr: dict[str, float | None] = field(default_factory=dict)
+    correl: dict[tuple[str, str], float] = field(default_factory=dict)
+    history: list[dict] = field(default_factory=list)
+    residual_names: list[str] = field(default_factory=list)
+    residuals: np.ndarray | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def at_boundary(self, name: str, tol: float = 1e-3) -> str:
+        f = REGISTRY[name]
+        v = self.final[name]
+        span = f.upper - f.lower
+        if v <= f.lower + tol * span:
+            return "at lower bound"
+        if v >= f.upper - tol * span:
+            return "at upper bound"
+        return ""
+
+    def report(self) -> str:
+        """Text report in the lmfit manner."""
+        lines = [f"[[Fit: {self.stage}]]",
+                 f"    method             = least_squares (trf, bounded, normalized factors)",
+                 f"    status             = {self.status}: {self.message}",
+                 f"    function evals     = {self.nfev} ({self.njev} Jacobians, {self.trims} trims)",
+                 f"    residuals          = {len(self.residual_names)}",
+                 f"    cost (1/2 sum r^2) = {self.cost_initial:.4g} -> {self.cost_final:.4g}",
+                 f"    wall time          = {self.wall_time_s:.1f} s",
+                 "[[Factors]]"]
+        for n in self.names:
+            f = REGISTRY[n]
+            se = self.stderr.get(n)
+            se_s = f" +/- {se:.3g}" if se is not None and math.isfinite(se) else " +/- (n/a)"
+            flag = self.at_boundary(n)
+            unit = "" if f.unit == "-" else f" {f.unit}"
+            lines.append(f"    {n:<17} {self.initial[n]:>9.4g} -> {self.final[n]:>9.5g}{se_s:<14}{unit:<6} "
+                         f"bounds [{f.lower:g}, {f.upper:g}]{'  ' + flag.upper() if flag else ''}")
+        strong = [(k, v) for k, v in self.correl.items() if abs(v) > 0.9]
+        if strong:
+            lines.append("[[Correlations]] (|r| > 0.9)")
+            for (a, b), v in sorted(strong, key=lambda kv: -abs(kv[1])):
+                lines.append(f"    C({a}, {b}) = {v:+.3f}")
+        for n in self.notes:
+            lines.append(f"    note: {n}")
+        return "\n".join(lines)
+
+    def summary(self) -> dict:
+        return {
+            "stage": self.stage, "status": self.status, "message": self.message, "nfev": self.nfev,
+            "njev": self.njev, "trims": self.trims, "cost_initial": self.cost_initial, "cost_final": self.cost_final,
+            "wall_time_s": round(self.wall_time_s, 3),
+            "factors": {n: {"initial": self.initial[n], "final": self.final[n], "stderr": self.stderr.get(n),
+                            "lower": REGISTRY[n].lower, "upper": REGISTRY[n].upper,
+                            "at_boundary": self.at_boundary(n) or None} for n in self.names},
+            "notes": self.notes,
+        }
+
+
+def _stderr(jac: np.ndarray, names: list[str], nres: int) -> tuple[dict, dict]:
+    """Standard errors of the factors from the Jacobian at the solution (residuals are
+    already divided by their tolerances, so a residual of 1 is one tolerance)."""
+    out: dict[str, float | None] = {n: None for n in names}
+    corr = {}
+    try:
+        jtj = jac.T @ jac
+        if np.linalg.matrix_rank(jtj) < len(names):
+            return out, corr
+        cov = np.linalg.inv(jtj)
+    except np.linalg.LinAlgError:
+        return out, corr
+    d = np.sqrt(np.clip(np.diag(cov), 0, None))
+    for i, n in enumerate(names):
+        f = REGISTRY[n]
+        out[n] = float(d[i] * 0.5 * (f.upper - f.lower))        # back from normalized units
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            if d[i] > 0 and d[j] > 0:
+                corr[(names[i], names[j])] = float(cov[i, j] / (d[i] * d[j]))
+    return out, corr
+
+
+def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[[FactorSet], tuple[np.ndarray, list[str]]],
+        *, sim: Simulator, diff_step: float = 0.02, max_nfev: int | None = None,
+        progress: Callable[[str], None] | None = None, ftol: float = 1e-6, xtol: float = 1e-6,
+        gtol: float = 1e-8) -> FitResult:
+    """Least-squares fit of ``names`` (others held at ``start``)."""
+    names = list(names)
+    t0 = time.perf_counter()
+    trims0 = sim.trims
+    x0 = start.vector(names)
+    bad = [n for n, x in zip(names, x0) if not -1.0 <= x <= 1.0]
+    if bad:
+        raise ValueError(f"start values outside the bounds of {', '.join(bad)}")
+    labels: list[str] = []
+    history: list[dict] = []
+    best = {"cost": math.inf, "x": x0}
+
+    def fun(x):
+        fs = start.with_vector(names, np.clip(x, -1, 1))
+        r, lab = residuals(fs)
+        labels[:] = lab
+        c = 0.5 * float(r @ r)
+        if c < best["cost"]:
+            best.update(cost=c, x=np.array(x))
+        return r
+
+    def callback(intermediate_result):
+        it = len(history) + 1
+        c = float(intermediate_result.cost)
+        history.append({"iteration": it, "cost": c, "time_s": time.perf_counter() - t0,
+                        "trims": sim.trims - trims0})
+        if progress:
+            progress(f"{stage}: iteration {it:3d}  cost {c:10.4g}  trims {sim.trims - trims0:6d}  "
+                     f"{time.perf_counter() - t0:6.1f} s")
+
+    njev = [0]
+
+    def jac(x):
+        """Forward differences with an absolute step of ``diff_step`` in normalized units
+        (larger than the trim noise; scipy's relative steps vanish at x = 0), stepping
+        inwards at a bound."""
+        njev[0] += 1
+        f0 = fun(x)
+        J = np.empty((len(f0), len(x)))
+        for i in range(len(x)):
+            h = diff_step if x[i] + diff_step <= 1.0 else -diff_step
+            xi = np.array(x, float)
+            xi[i] += h
+            J[:, i] = (fun(xi) - f0) / h
+        return J
+
+    r0 = fun(x0)
+    cost0 = 0.5 * float(r0 @ r0)
+    if progress:
+        progress(f"{stage}: start cost {cost0:.4g} with {len(r0)} residuals, {len(names)} factors")
+    res = least_squares(fun, x0, jac=jac, bounds=(-1.0, 1.0), method="trf", x_scale=1.0,
+                        ftol=ftol, xtol=xtol, gtol=gtol, max_nfev=max_nfev, callback=callback)
+    final = start.with_vector(names, np.clip(res.x, -1, 1))
+    r_final, _ = residuals(final)             # leaves the simulator at the final factors
+    se, corr = _stderr(res.jac, names, len(r_final))
+    return FitResult(stage, names, start, final, cost0, 0.5 * float(r_final @ r_final), res.nfev,
+                     njev[0], int(res.status), str(res.message), time.perf_counter() - t0,
+                     sim.trims - trims0, se, corr, history, list(labels), r_final)
+
+
+# --------------------------------------------------------------------------- stage 1
+# Subset of the C172 POH used in the fit (9 climb, 7 cruise, as the method): chosen to span
+# temperature, altitude and power. Points are matched by their values, so the same
+# selection rule applies to any aircraft: extreme and middle temperatures and altitudes.
+def default_subset(ds: Dataset, n: int) -> list[int]:
+    """Indices of ``n`` points spread over the data: farthest-point sampling in normalized
+    (altitude, temperature or speed) space, starting from the first point. Deterministic."""
+    f = ds.frame
+    cols = ["pressure_alt_ft"] + (["oat_c"] if "oat_c" in f else []) + (["ktas"] if "ktas" in f else []) \
+        + (["temp_dev_c"] if "temp_dev_c" in f and f["temp_dev_c"].nunique() > 1 else [])
+    X = f[cols].to_numpy(float)
+    span = np.ptp(X, axis=0)
+    X = (X - X.min(0)) / np.where(span > 0, span, 1.0)
+    n = min(n, len(X))
+    chosen = [int(np.argmin(X[:, 0] + X[:, -1]))]
+    d = np.linalg.norm(X - X[chosen[0]], axis=1)
+    while len(chosen) < n:
+        k = int(np.argmax(d))
+        chosen.append(k)
+        d = np.minimum(d, np.linalg.norm(X - X[k], axis=1))
+    return sorted(chosen)
+
+
+@dataclass
+class PointSet:
+    """Trim conditions and targets of the points a fit uses."""
+
+    name: str
+    dataset: Dataset
+    indices: list[int]
+    conditions: list[Condition]
+    metrics: tuple[str, ...]
+
+    @classmethod
+    def from_dataset(cls, ds: Dataset, sim: Simulator, indices: Sequence[int] | None = None, metrics=None):
+        conds = KINDS[ds.kind].conditions(ds, sim.geometry)
+        idx = list(range(len(ds))) if indices is None else list(indices)
+        return cls(ds.kind, ds, idx, [conds[i] for i in idx], tuple(metrics or ds.metrics))
+
+    def target(self, i: int, m: str) -> float:
+        return float(self.dataset.frame.iloc[self.indices[i]][m])
+
+
+def trim_points(sim: Simulator, ps: PointSet) -> list[TrimResult]:
+    return [sim.trim(c, key=(str(ps.dataset.path), ps.indices[k])) for k, c in enumerate(ps.conditions)]
+
+
+def point_residuals(sim: Simulator, ps: PointSet, metrics: Sequence[str],
+                    results: list[TrimResult] | None = None) -> tuple[list[float], list[str], int]:
+    """Residuals (model - data)/tolerance of a point set, with the throttle penalty for level
+    points that need more than full throttle. Returns residuals, labels, number failed."""
+    value = KINDS[ps.dataset.kind].value
+    res, lab, failed = [], [], 0
+    results = results if results is not None else trim_points(sim, ps)
+    for k, t in enumerate(results):
+        cond = ps.conditions[k]
+        # a level point past the throttle stop keeps its (continuous) values and pays the
+        # throttle penalty (eq. 3.32); other failures pay the failure penalty (eq. 3.33)
+        past_stop = (not t.trimmed and cond.mode == "level" and t.reason.startswith("needs more than full")
+                     and ";" not in t.reason)
+        ok = t.trimmed or past_stop
+        if not ok:
+            failed += 1
+        for m in metrics:
+            ref = ps.target(k, m)
+            if not np.isfinite(ref):
+                continue
+            v = value(m, t) if ok else np.nan
+            tol = METRICS[m].tol_for(ref)
+            res.append((v - ref) / tol if np.isfinite(v) else 0.0)
+            lab.append(f"{ps.name}[{ps.indices[k]}].{m}")
+        if cond.mode == "level":
+            thr = t.extra.get("throttle_required", 0.0) if ok else 1.0
+            res.append(max(0.0, (thr - 1.0) / THROTTLE_TOL))
+            lab.append(f"{ps.name}[{ps.indices[k]}].throttle>1")
+    return res, lab, failed
+
+
+STEADY_NAMES = [f.name for f in stage_factors("steady") if f.name != "K_FF"]
+
+
+def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: FactorSet | None = None,
+                 climb_points: Sequence[int] | None = None, cruise_points: Sequence[int] | None = None,
+                 progress: Callable[[str], None] | None = None, diff_step: float = 0.02,
+                 max_nfev: int | None = 60) -> tuple[FitResult, FitResult]:
+    """Method stage 1: the 16 coupled factors on the subset, then K_FF alone on fuel flow."""
+    start = start or FactorSet()
+    ci = default_subset(climb, 9) if climb_points is None else list(climb_points)
+    ki = default_subset(cruise, 7) if cruise_points is None else list(cruise_points)
+    cps = PointSet.from_dataset(climb, sim, ci)
+    kps = PointSet.from_dataset(cruise, sim, ki)
+
+    def residuals(fs: FactorSet):
+        sim.set_factors(fs)
+        r1, l1, f1 = point_residuals(sim, cps, ("roc_fpm",))
+        r2, l2, f2 = point_residuals(sim, kps, ("pct_power", "rpm"))
+        return np.array(r1 + r2 + [FAIL_PENALTY * (f1 + f2)]), l1 + l2 + ["trim failures"]
+
+    main = fit("steady", STEADY_NAMES, start, residuals, sim=sim, diff_step=diff_step, progress=progress,
+               max_nfev=max_nfev)
+    main.notes.append(f"fitted points: climb {ci}, cruise {ki} (row indices of {climb.path.name}, {cruise.path.name})")
+
+    def ff_residuals(fs: FactorSet):
+        sim.set_factors(fs)
+        r, l, f = point_residuals(sim, kps, ("gph",))
+        return np.array(r + [FAIL_PENALTY * f]), l + ["trim failures"]
+
+    ff = fit("fuel flow", ["K_FF"], main.final, ff_residuals, sim=sim, diff_step=diff_step, progress=progress)
+    return main, ff
