@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -28,6 +28,7 @@ from .factors import REGISTRY, FactorSet, stage_factors
 from .fdm import Condition, Simulator, TrimResult
 
 FAIL_PENALTY = 20.0          # per failed trim (method eq. 3.33)
+PRIOR_WEIGHT = 0.05          # weak pull of normalized factors toward neutral (see fit)
 THROTTLE_TOL = 0.05          # throttle above 1 per 0.05 (eq. 3.32)
 
 
@@ -79,6 +80,8 @@ class FitResult:
             se = self.stderr.get(n)
             se_s = f" +/- {se:.3g}" if se is not None and math.isfinite(se) else " +/- (n/a)"
             flag = self.at_boundary(n)
+            if not flag and se is not None and math.isfinite(se) and se > 0.5 * (f.upper - f.lower):
+                flag = "not identified by these data"
             unit = "" if f.unit == "-" else f" {f.unit}"
             lines.append(f"    {n:<17} {self.initial[n]:>9.4g} -> {self.final[n]:>9.5g}{se_s:<14}{unit:<6} "
                          f"bounds [{f.lower:g}, {f.upper:g}]{'  ' + flag.upper() if flag else ''}")
@@ -103,9 +106,9 @@ class FitResult:
         }
 
 
-def _stderr(jac: np.ndarray, names: list[str], nres: int) -> tuple[dict, dict]:
-    """Standard errors of the factors from the Jacobian at the solution (residuals are
-    already divided by their tolerances, so a residual of 1 is one tolerance)."""
+def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray) -> tuple[dict, dict]:
+    """Standard errors of the factors from the Jacobian at the solution, with the
+    covariance scaled by the reduced chi-square of the residuals (as lmfit does)."""
     out: dict[str, float | None] = {n: None for n in names}
     corr = {}
     try:
@@ -115,6 +118,8 @@ def _stderr(jac: np.ndarray, names: list[str], nres: int) -> tuple[dict, dict]:
         cov = np.linalg.inv(jtj)
     except np.linalg.LinAlgError:
         return out, corr
+    dof = max(1, len(residuals) - len(names))
+    cov = cov * float(residuals @ residuals) / dof
     d = np.sqrt(np.clip(np.diag(cov), 0, None))
     for i, n in enumerate(names):
         f = REGISTRY[n]
@@ -129,8 +134,14 @@ def _stderr(jac: np.ndarray, names: list[str], nres: int) -> tuple[dict, dict]:
 def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[[FactorSet], tuple[np.ndarray, list[str]]],
         *, sim: Simulator, diff_step: float = 0.02, max_nfev: int | None = None,
         progress: Callable[[str], None] | None = None, ftol: float = 1e-6, xtol: float = 1e-6,
-        gtol: float = 1e-8) -> FitResult:
-    """Least-squares fit of ``names`` (others held at ``start``)."""
+        gtol: float = 1e-8, prior: float = PRIOR_WEIGHT) -> FitResult:
+    """Least-squares fit of ``names`` (others held at ``start``).
+
+    ``prior`` adds the residuals ``prior * x`` (x = normalized factor, 0 = neutral): a weak
+    pull toward neutral that picks, among factor sets the data cannot tell apart, the one
+    closest to the physics-based model (a factor at its bound costs prior^2 = 0.0025, less
+    than a tenth of a tolerance on one point).
+    """
     names = list(names)
     t0 = time.perf_counter()
     trims0 = sim.trims
@@ -145,6 +156,9 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     def fun(x):
         fs = start.with_vector(names, np.clip(x, -1, 1))
         r, lab = residuals(fs)
+        if prior:
+            r = np.concatenate([r, prior * fs.vector(names)])
+            lab = list(lab) + [f"prior {n}" for n in names]
         labels[:] = lab
         c = 0.5 * float(r @ r)
         if c < best["cost"]:
@@ -184,7 +198,9 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
                         ftol=ftol, xtol=xtol, gtol=gtol, max_nfev=max_nfev, callback=callback)
     final = start.with_vector(names, np.clip(res.x, -1, 1))
     r_final, _ = residuals(final)             # leaves the simulator at the final factors
-    se, corr = _stderr(res.jac, names, len(r_final))
+    if prior:
+        r_final = np.concatenate([r_final, prior * final.vector(names)])
+    se, corr = _stderr(res.jac, names, r_final)
     return FitResult(stage, names, start, final, cost0, 0.5 * float(r_final @ r_final), res.nfev,
                      njev[0], int(res.status), str(res.message), time.perf_counter() - t0,
                      sim.trims - trims0, se, corr, history, list(labels), r_final)
@@ -250,6 +266,14 @@ def point_residuals(sim: Simulator, ps: PointSet, metrics: Sequence[str],
         # throttle penalty (eq. 3.32); other failures pay the failure penalty (eq. 3.33)
         past_stop = (not t.trimmed and cond.mode == "level" and t.reason.startswith("needs more than full")
                      and ";" not in t.reason)
+        thr = t.extra.get("throttle_required", 1.0)
+        if past_stop:
+            # compare what the aircraft does at full throttle (speed falls short), as the
+            # evaluation does: continuous with the level trim at the stop
+            ft = sim.trim(replace(cond, mode="level_full_throttle", throttle=1.0),
+                          key=(str(ps.dataset.path), ps.indices[k], "full throttle"))
+            if ft.trimmed:
+                t = ft
         ok = t.trimmed or past_stop
         if not ok:
             failed += 1
@@ -262,8 +286,7 @@ def point_residuals(sim: Simulator, ps: PointSet, metrics: Sequence[str],
             res.append((v - ref) / tol if np.isfinite(v) else 0.0)
             lab.append(f"{ps.name}[{ps.indices[k]}].{m}")
         if cond.mode == "level":
-            thr = t.extra.get("throttle_required", 0.0) if ok else 1.0
-            res.append(max(0.0, (thr - 1.0) / THROTTLE_TOL))
+            res.append(max(0.0, (thr - 1.0) / THROTTLE_TOL) if ok else 0.0)
             lab.append(f"{ps.name}[{ps.indices[k]}].throttle>1")
     return res, lab, failed
 

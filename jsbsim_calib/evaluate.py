@@ -207,7 +207,8 @@ def evaluate_dataset(sim: Simulator, ds: Dataset, *, model_kind: str = "calibrat
     points = []
     rows = ds.frame.to_dict("records")
     for i, (row, cond) in enumerate(zip(rows, conds)):
-        t = sim.trim(cond, key=(str(ds.path), i))
+        key = (str(ds.path), i)
+        t = sim.trim_level(cond, key) if cond.mode == "level" else sim.trim(cond, key)
         points.append(compare(i, row, ds.metrics, t, kind.value))
         if progress:
             progress(i + 1, len(rows))

@@ -43,6 +43,13 @@ TRIM_AID_LBF = 300.0
 NEWTON_TOL = 2e-6        # accelerations in g (rotational in rad/s^2): a few hundredths of a fpm of climb
 
 
+MODES = {
+    "level": "flight path given (vs_fpm), speed given, throttle trims",
+    "full_throttle": "throttle given (throttle), speed given, flight path free (a climb)",
+    "level_full_throttle": "throttle given, flight path given, speed free (maximum level speed)",
+}
+
+
 @dataclass(frozen=True)
 class Condition:
     """A flight condition to trim to. Speeds in knots, altitudes in feet, angles in degrees."""
@@ -55,7 +62,7 @@ class Condition:
     isa_dev_c: float = 0.0
     cg_in: float | None = None            # None: the aircraft's POH CG
     flaps_deg: float = 0.0
-    mode: str = "level"                   # level: throttle trims, vs given | full_throttle: flight path free
+    mode: str = "level"                   # see MODES
     vs_fpm: float = 0.0                   # vertical speed (geometric) for mode 'level'
     throttle: float = 1.0                 # for mode 'full_throttle'
     bank_deg: float = 0.0
@@ -66,8 +73,8 @@ class Condition:
     def __post_init__(self):
         if (self.kcas is None) == (self.ktas is None):
             raise ValueError("give exactly one of kcas and ktas")
-        if self.mode not in ("level", "full_throttle"):
-            raise ValueError(f"mode must be 'level' or 'full_throttle', not {self.mode!r}")
+        if self.mode not in MODES:
+            raise ValueError(f"mode must be one of {', '.join(MODES)}, not {self.mode!r}")
         if self.turn not in ("straight", "coordinated"):
             raise ValueError(f"turn must be 'straight' or 'coordinated', not {self.turn!r}")
 
@@ -308,16 +315,19 @@ class Simulator:
         phi = math.radians(cond.bank_deg)
         t_std = float(isa_temperature(cond.pressure_alt_ft * FT))
         full = cond.mode == "full_throttle"
-        gamma = 0.0 if full else math.asin(max(-1.0, min(1.0, cond.vs_fpm / 60.0 / V)))
-        omega = G_FT * math.tan(phi) / V if cond.turn == "coordinated" else 0.0
+        speed_free = cond.mode == "level_full_throttle"
         scale = np.array([G_FT, G_FT, G_FT, 1.0, 1.0, 1.0])
+        V0 = V
 
         def set_state(x):
             a, b = x[0], x[1]
+            V = V0 * x[2] if speed_free else V0
+            omega = G_FT * math.tan(phi) / V if cond.turn == "coordinated" else 0.0
             if full:
                 th, thr = x[2], cond.throttle
             else:
-                thr = x[2]
+                thr = cond.throttle if speed_free else x[2]
+                gamma = math.asin(max(-1.0, min(1.0, cond.vs_fpm / 60.0 / V)))
                 ca, cb = math.cos(a) * math.cos(b), math.sin(b) * math.sin(phi) + math.sin(a) * math.cos(b) * math.cos(phi)
                 th = math.atan2(cb, ca) + math.asin(max(-1.0, min(1.0, math.sin(gamma) / math.hypot(ca, cb))))
             fdm["ic/phi-rad"] = phi
@@ -354,7 +364,7 @@ class Simulator:
         S = self.geometry.reference.wing_area_m2 / FT**2
         cl = cond.weight_lb / max(q * S, 1e-6)
         a0 = max(-0.1, min(0.25, (cl - 0.25 - 0.02 * cond.flaps_deg) / 4.8))
-        cold = np.array([a0, 0.0, a0 + 0.08 if full else 0.65, 0.0, 0.0, 0.0])
+        cold = np.array([a0, 0.0, a0 + 0.08 if full else (1.0 if speed_free else 0.65), 0.0, 0.0, 0.0])
         self.fdm.suspend_integration()
         best = None
         nfev = 0
@@ -401,7 +411,7 @@ class Simulator:
         out = TrimResult(cond, True, residual=res, evals=nfev + 1)
         for k, p in OUTPUTS.items():
             setattr(out, k, float(fdm[p]))
-        out.throttle = float(x[2]) if not full else cond.throttle
+        out.throttle = cond.throttle if (full or speed_free) else float(x[2])
         out.extra["throttle_required"] = out.throttle
         out.extra["trim_aid_lbf"] = float(fdm[TRIM_AID])
         out.mixture = mix
@@ -415,9 +425,9 @@ class Simulator:
         for i, name in ((3, "elevator"), (4, "aileron"), (5, "rudder")):
             if abs(x[i]) > CONTROL_LIMIT:
                 problems.append(f"{name} beyond its stop ({x[i]:+.2f} of travel)")
-        if not full and x[2] > 1.0 + 1e-4:
+        if cond.mode == "level" and x[2] > 1.0 + 1e-4:
             problems.append(f"needs more than full throttle ({fdm[TRIM_AID]:.0f} lbf short)")
-        if not full and x[2] < -1e-4:
+        if cond.mode == "level" and x[2] < -1e-4:
             problems.append("needs less than idle throttle")
         if not math.isfinite(out.rpm) or out.rpm < 100:
             problems.append("engine not running")
@@ -438,6 +448,28 @@ class Simulator:
             xi[i] += h
             J[:, i] = (residual(xi) - fx) / h
         return J
+
+    def trim_level(self, cond: Condition, key=None, speed_tolerance_kt: float = 3.0) -> TrimResult:
+        """Level point; when it needs more than full throttle, level flight at full throttle
+        instead (speed free), accepted if the speed reached is within ``speed_tolerance_kt``
+        of the data (Part 60 airspeed tolerance) and reported with the shortfall."""
+        t = self.trim(cond, key)
+        if t.trimmed or not t.reason.startswith("needs more than full throttle") or ";" in t.reason:
+            return t
+        ft = self.trim(replace(cond, mode="level_full_throttle", throttle=1.0),
+                       None if key is None else (key, "full throttle"))
+        if not ft.trimmed:
+            return t
+        want = cond.ktas if cond.ktas is not None else t.ktas
+        short = want - ft.ktas
+        ft.extra["ktas_shortfall"] = short
+        ft.condition = cond
+        if short > speed_tolerance_kt:
+            ft.trimmed = False
+            ft.reason = f"full throttle reaches {ft.ktas:.1f} kt, {short:.1f} kt short"
+        else:
+            ft.reason = f"at full throttle: {ft.ktas:.1f} kt, {short:.1f} kt short of the data speed"
+        return ft
 
     def _flap_max_deg(self) -> float:
         f = self.geometry.wing.control("flap")

@@ -24,6 +24,9 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+# Reference data an aircraft folder can name ([data] table of geometry.toml)
+DATA_KINDS = ("poh_climb", "poh_cruise", "flight_test", "flap_climb", "g1000")
+
 _QTY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S*)\s*$")
 
 
@@ -256,6 +259,7 @@ class AircraftGeometry:
     gear: tuple[GearContact, ...]
     operations: Operations
     control_travel_file: Path | None = None
+    data_files: dict[str, Path] = field(default_factory=dict)   # kind -> reference data file
 
     @property
     def surfaces(self) -> tuple[LiftingSurface, ...]:
@@ -560,6 +564,18 @@ def load_geometry(path: str | Path, airfoil_dirs: Sequence[Path] | None = None) 
     ops = Operations(r.qty("operations.poh_cg", "length"),
                      r.number("operations.poh_fuel_fraction", lo=0.0, hi=1.0),
                      kias / 0.514444444444, kcas / 0.514444444444)
+    data_files = {}
+    for kind, rel in (r.raw("data", required=False) or {}).items():
+        if kind not in DATA_KINDS:
+            r.bad(f"data.{kind}", f"unknown data kind; known: {', '.join(DATA_KINDS)}")
+            continue
+        if not isinstance(rel, str):
+            r.bad(f"data.{kind}", "expected a path relative to the repository root")
+            continue
+        pth = path.parent.parent.parent / rel
+        if not pth.is_file():
+            r.bad(f"data.{kind}", f"file not found: {pth}")
+        data_files[kind] = pth
     travel = r.text("controls.travel_file", required=False)
     travel_path = (path.parent.parent.parent / travel) if travel else None
     if travel_path is not None and not travel_path.is_file():
@@ -575,4 +591,4 @@ def load_geometry(path: str | Path, airfoil_dirs: Sequence[Path] | None = None) 
     if r.problems:
         raise GeometryError(path, r.problems)
     return AircraftGeometry(name, title, path, ref, wing, ht, vt, fus, drag, prop, eng, fuel_type, tanks, mass,
-                            tuple(gear), ops, travel_path)
+                            tuple(gear), ops, travel_path, data_files)

@@ -1,0 +1,155 @@
+"""Command line: a thin layer over the library.
+
+    jsbsim-calib generate AIRCRAFT [--baseline]
+    jsbsim-calib calibrate AIRCRAFT --stage steady [--no-write] [--from current]
+    jsbsim-calib evaluate AIRCRAFT --data FILE [--baseline] [--json OUT]
+    jsbsim-calib check AIRCRAFT
+    jsbsim-calib airfoil NAME
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from .errors import CalibError
+
+
+def _progress(quiet: bool):
+    if quiet:
+        return None
+    t0 = time.perf_counter()
+
+    def say(msg: str) -> None:
+        print(f"[{time.perf_counter() - t0:7.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    return say
+
+
+def cmd_generate(a) -> int:
+    from .build import generate
+    g = generate(a.aircraft, Path(a.root), baseline=a.baseline, progress=_progress(a.quiet))
+    for p in g.files:
+        print(p)
+    return 0
+
+
+def cmd_calibrate(a) -> int:
+    root = Path(a.root)
+    say = _progress(a.quiet)
+    if a.stage == "steady":
+        from .build import read_calibration, AircraftPaths
+        from .report import write_steady_report
+        from .workflow import run_steady, write_product
+        start = read_calibration(AircraftPaths(root, a.aircraft)) if a.start == "current" else None
+        res = run_steady(root, a.aircraft, start=start, progress=say)
+        print(res.fit.report())
+        print(res.fuel_flow.report())
+        from .evaluate import format_summary
+        for kind in res.calibrated:
+            print(f"\n{kind}: baseline")
+            print(format_summary(res.baseline[kind].summary()))
+            print(f"{kind}: calibrated")
+            print(format_summary(res.calibrated[kind].summary()))
+            if res.thesis.get(kind):
+                print(f"{kind}: thesis model (same points)")
+                print(format_summary(res.thesis[kind]))
+        print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims")
+        if not a.no_write:
+            files = write_product(root, a.aircraft, res.factors, "steady", res.summary())
+            print("written: " + ", ".join(str(f) for f in files))
+        report = write_steady_report(res, root, Path(a.report_dir) / a.aircraft)
+        print(f"report: {report}")
+        return 0
+    if a.stage == "trims":
+        from .flighttest_stage import run_trims_cli
+        return run_trims_cli(a, say)
+    raise CalibError(f"unknown stage {a.stage}")
+
+
+def cmd_evaluate(a) -> int:
+    from .data import load_dataset
+    from .evaluate import evaluate_dataset
+    from .fdm import Simulator
+    ds = load_dataset(a.data)
+    with Simulator(Path(a.root), a.aircraft, baseline=a.baseline) as sim:
+        if ds.kind == "g1000":
+            from .logs import evaluate_log
+            ev = evaluate_log(sim, ds.path, model_kind="baseline" if a.baseline else "calibrated")
+        else:
+            ev = evaluate_dataset(sim, ds, model_kind="baseline" if a.baseline else "calibrated")
+    print(ev.table())
+    if a.json:
+        ev.write_json(Path(a.json))
+        print(f"json: {a.json}")
+    return 0
+
+
+def cmd_check(a) -> int:
+    from .fdm import Simulator
+    from .stability import report
+    with Simulator(Path(a.root), a.aircraft, baseline=a.baseline) as sim:
+        rep = report(sim)
+    print(json.dumps(rep, indent=2))
+    return 0
+
+
+def cmd_airfoil(a) -> int:
+    from .airfoil import regenerate
+    print(regenerate(a.name, Path(a.out)))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="jsbsim-calib", description="Build and calibrate general-aviation JSBSim aircraft.")
+    p.add_argument("--root", default=".", help="JSBSim root (holds aircraft/, engine/, data/); default: current dir")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    g = sub.add_parser("generate", help="regenerate an aircraft's JSBSim files from aircraft/NAME/geometry.toml")
+    g.add_argument("aircraft")
+    g.add_argument("--baseline", action="store_true", help="write neutral factors (ignore calibration.json)")
+    g.set_defaults(func=cmd_generate)
+
+    c = sub.add_parser("calibrate", help="run a calibration stage and write the calibrated aircraft")
+    c.add_argument("aircraft")
+    c.add_argument("--stage", required=True, choices=("steady", "trims"),
+                   help="steady: POH climb/cruise (stage 1); trims: flight-test trims (stage 2a)")
+    c.add_argument("--start", choices=("neutral", "current"), default="neutral",
+                   help="start from neutral factors (default, reproducible) or the current calibration")
+    c.add_argument("--no-write", action="store_true", help="do not write the aircraft files")
+    c.add_argument("--report-dir", default="reports", help="where reports go (default reports/)")
+    c.set_defaults(func=cmd_calibrate)
+
+    e = sub.add_parser("evaluate", help="compare the model with a data file (POH, flight test, G1000 log)")
+    e.add_argument("aircraft")
+    e.add_argument("--data", required=True)
+    e.add_argument("--baseline", action="store_true", help="evaluate the uncalibrated model")
+    e.add_argument("--json", help="write the results as JSON")
+    e.set_defaults(func=cmd_evaluate)
+
+    k = sub.add_parser("check", help="plausibility: lift slope, stall speed, stability and damping derivatives")
+    k.add_argument("aircraft")
+    k.add_argument("--baseline", action="store_true")
+    k.set_defaults(func=cmd_check)
+
+    f = sub.add_parser("airfoil", help="recompute a stored airfoil polar with NeuralFoil")
+    f.add_argument("name")
+    f.add_argument("--out", default="airfoils")
+    f.set_defaults(func=cmd_airfoil)
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except CalibError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,164 @@
+"""Plots for reports. Every function takes an optional ``ax`` and returns the figure.
+
+Matplotlib's Agg backend only: no display needed.
+"""
+from __future__ import annotations
+
+from typing import Mapping
+
+import matplotlib
+
+matplotlib.use("Agg")
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from .data import METRICS  # noqa: E402
+
+STYLES = {"baseline": dict(color="tab:gray", ls="--", lw=1.2), "calibrated": dict(color="tab:blue", ls="-", lw=1.6),
+          "thesis": dict(color="tab:orange", ls=":", lw=1.2)}
+
+
+def _ax(ax, size=(6.4, 4.4)):
+    if ax is not None:
+        return ax.figure, ax
+    fig = Figure(figsize=size, dpi=110)
+    return fig, fig.add_subplot(111)
+
+
+def _style(label: str) -> dict:
+    return STYLES.get(label, dict(lw=1.4))
+
+
+def climb_vs_altitude(evals: Mapping[str, object], ax=None) -> Figure:
+    """Rate of climb vs pressure altitude: data markers per temperature, one line per model."""
+    fig, ax = _ax(ax)
+    first = next(iter(evals.values()))
+    f = first.dataset.frame
+    temp_col = "oat_c" if "oat_c" in f else "temp_dev_c"
+    temps = sorted(f[temp_col].unique())
+    cmap = matplotlib.colormaps["coolwarm"]
+    for k, T in enumerate(temps):
+        c = cmap(k / max(1, len(temps) - 1))
+        sel = f[temp_col] == T
+        ax.plot(f.loc[sel, "pressure_alt_ft"], f.loc[sel, "roc_fpm"], "o", color=c, ms=5,
+                label=f"POH {T:g} C" if temp_col == "oat_c" else f"POH ISA{T:+g}")
+        for label, ev in evals.items():
+            pts = [p for p, s in zip(ev.points, sel) if s]
+            alt = [p.inputs["pressure_alt_ft"] for p in pts]
+            roc = [p.model.get("roc_fpm", np.nan) for p in pts]
+            st = _style(label)
+            ax.plot(alt, roc, color=c, ls=st["ls"], lw=st["lw"])
+    for label in evals:
+        ax.plot([], [], color="k", ls=_style(label)["ls"], label=label)
+    ax.set_xlabel("pressure altitude [ft]")
+    ax.set_ylabel("rate of climb [ft/min]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    ax.set_title("Maximum rate of climb: POH vs model")
+    return fig
+
+
+def cruise_vs_speed(evals: Mapping[str, object], metric: str, ax=None) -> Figure:
+    """A cruise metric vs KTAS, one colour per altitude: POH markers, model lines."""
+    fig, ax = _ax(ax)
+    first = next(iter(evals.values()))
+    f = first.dataset.frame
+    alts = sorted(f["pressure_alt_ft"].unique())
+    cmap = matplotlib.colormaps["viridis"]
+    for k, h in enumerate(alts):
+        c = cmap(k / max(1, len(alts) - 1))
+        sel = (f["pressure_alt_ft"] == h).to_numpy()
+        ax.plot(f.loc[sel, "ktas"], f.loc[sel, metric], "o", color=c, ms=4, label=f"{h:,.0f} ft")
+        for label, ev in evals.items():
+            pts = [p for p, s in zip(ev.points, sel) if s]
+            st = _style(label)
+            ax.plot([p.inputs["ktas"] for p in pts], [p.model.get(metric, np.nan) for p in pts], color=c,
+                    ls=st["ls"], lw=st["lw"])
+    for label in evals:
+        ax.plot([], [], color="k", ls=_style(label)["ls"], label=label)
+    ax.set_xlabel("true airspeed [kt]")
+    ax.set_ylabel(f"{metric} [{METRICS[metric].unit}]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    ax.set_title(f"Cruise {METRICS[metric].doc}: POH vs model")
+    return fig
+
+
+def parity(evals: Mapping[str, object], metric: str, ax=None) -> Figure:
+    """Model vs data for one metric, with the tolerance band."""
+    fig, ax = _ax(ax, (4.6, 4.4))
+    lo, hi = np.inf, -np.inf
+    for label, ev in evals.items():
+        x = np.array([p.inputs.get(metric, np.nan) for p in ev.points])
+        y = np.array([p.model.get(metric, np.nan) for p in ev.points])
+        ok = np.isfinite(x) & np.isfinite(y)
+        st = _style(label)
+        ax.plot(x[ok], y[ok], "o", ms=4, color=st.get("color"), alpha=0.8, label=label)
+        if ok.any():
+            lo, hi = min(lo, x[ok].min(), y[ok].min()), max(hi, x[ok].max(), y[ok].max())
+    if np.isfinite(lo):
+        pad = 0.05 * (hi - lo + 1e-9)
+        xs = np.linspace(lo - pad, hi + pad, 50)
+        m = METRICS[metric]
+        tol = np.array([m.tol_for(v) for v in xs])
+        ax.plot(xs, xs, "k-", lw=0.8)
+        ax.fill_between(xs, xs - tol, xs + tol, color="tab:green", alpha=0.15, label="tolerance")
+        ax.set_xlim(xs[0], xs[-1])
+        ax.set_ylim(xs[0], xs[-1])
+    ax.set_xlabel(f"data {metric}")
+    ax.set_ylabel(f"model {metric}")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title(f"{metric}: parity")
+    return fig
+
+
+def aero_polars(curves: Mapping[str, Mapping[str, np.ndarray]], ax=None) -> Figure:
+    """CL vs alpha and CL vs CD for each model (curves: label -> {alpha_deg, CL, CD})."""
+    if ax is None:
+        fig = Figure(figsize=(9.0, 4.0), dpi=110)
+        a1, a2 = fig.add_subplot(121), fig.add_subplot(122)
+    else:
+        fig, (a1, a2) = ax[0].figure, ax
+    for label, c in curves.items():
+        st = _style(label)
+        a1.plot(c["alpha_deg"], c["CL"], label=label, **st)
+        a2.plot(c["CD"], c["CL"], label=label, **st)
+    a1.set_xlabel("angle of attack [deg]")
+    a1.set_ylabel("CL")
+    a2.set_xlabel("CD")
+    a2.set_ylabel("CL")
+    for a in (a1, a2):
+        a.grid(alpha=0.3)
+        a.legend(fontsize=7)
+    a1.set_title("Lift curve (elevator neutral, clean)")
+    a2.set_title("Drag polar")
+    return fig
+
+
+def propeller_curves(tables: Mapping[str, object], ax=None) -> Figure:
+    """C_THRUST and C_POWER vs advance ratio for each set of tables (fixed pitch, or the
+    middle blade angle of a constant-speed propeller)."""
+    fig, ax = _ax(ax)
+    for label, t in tables.items():
+        ct, cp = t.CT, t.CP
+        note = ""
+        if t.beta75_deg is not None:
+            k = len(t.beta75_deg) // 2
+            ct, cp = ct[:, k], cp[:, k]
+            note = f" ({t.beta75_deg[k]:g} deg)"
+        st = _style(label)
+        ax.plot(t.J, ct, label=f"C_T {label}{note}", color=st.get("color"), ls=st["ls"])
+        ax.plot(t.J, cp, label=f"C_P {label}{note}", color=st.get("color"), ls=":" if st["ls"] == "-" else "-.")
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_xlabel("advance ratio J")
+    ax.set_ylabel("coefficient")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title("Propeller tables")
+    return fig
+
+
+def save(fig: Figure, path) -> None:
+    fig.tight_layout()
+    fig.savefig(path)

@@ -1,0 +1,161 @@
+"""The calibration chain an aircraft goes through, and writing the calibrated product.
+
+``run_steady`` evaluates the baseline on all POH points, runs stage 1 (16 factors, then
+K_FF), evaluates the result on all points, and returns a ``SteadyCalibration``.
+``write_product`` writes the factors into the aircraft XML (and re-bakes the propeller),
+with the record in ``aircraft/<name>/calibration.json``: ``load_model(name)`` is then the
+calibrated aircraft, and ``jsbsim-calib generate <name>`` reproduces the same bytes.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from lxml import etree
+
+from . import __version__, xmlmodel
+from .build import AircraftPaths, load_aircraft_geometry, propeller_tree, read_bem_csv, read_calibration
+from .calibrate import FitResult, default_subset, steady_stage
+from .data import METRICS, Dataset, load_dataset
+from .errors import ModelError
+from .evaluate import Evaluation, PointResult, evaluate_dataset, summarize
+from .factors import FactorSet, PROPELLER_FACTORS
+from .fdm import Simulator
+from .propeller import PropellerFactors, apply_factors
+from .units import FT, KT
+
+
+@dataclass
+class SteadyCalibration:
+    aircraft: str
+    fit: FitResult
+    fuel_flow: FitResult
+    baseline: dict[str, Evaluation]
+    calibrated: dict[str, Evaluation]
+    thesis: dict[str, dict]
+    factors: FactorSet
+    wall_time_s: float
+    trims: int
+    climb_points: list[int]
+    cruise_points: list[int]
+
+    def summary(self) -> dict:
+        return {
+            "aircraft": self.aircraft, "wall_time_s": round(self.wall_time_s, 2), "trims": self.trims,
+            "fit": self.fit.summary(), "fuel_flow": self.fuel_flow.summary(),
+            "baseline": {k: e.summary() for k, e in self.baseline.items()},
+            "calibrated": {k: e.summary() for k, e in self.calibrated.items()},
+            "thesis": self.thesis,
+            "fitted_points": {"poh_climb": self.climb_points, "poh_cruise": self.cruise_points},
+        }
+
+
+def thesis_summary(ds: Dataset) -> dict:
+    """Accuracy of the thesis's calibrated model on the same points (columns thesis_model_*)."""
+    pts = []
+    ref = ds.reference
+    for i, row in enumerate(ds.frame.to_dict("records")):
+        model, error, within = {}, {}, {}
+        for m in ds.metrics:
+            col = f"thesis_model_{m}"
+            if col not in ref.columns:
+                continue
+            try:
+                v = float(ref[col].iloc[i])
+            except ValueError:
+                continue
+            model[m], error[m] = v, v - row[m]
+            within[m] = abs(v - row[m]) <= METRICS[m].tol_for(row[m]) + 1e-9
+        pts.append(PointResult(i, row, model, error, within, bool(model)))
+    metrics = [m for m in ds.metrics if f"thesis_model_{m}" in ref.columns]
+    return summarize(pts, metrics) if metrics else {}
+
+
+def aircraft_data(root: Path, name: str, kinds=("poh_climb", "poh_cruise")) -> dict[str, Dataset]:
+    geom = load_aircraft_geometry(root, name)
+    missing = [k for k in kinds if k not in geom.data_files]
+    if missing:
+        raise ModelError(f"aircraft/{name}/geometry.toml names no data for {', '.join(missing)} ([data] table)")
+    return {k: load_dataset(geom.data_files[k]) for k in kinds}
+
+
+def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
+               progress: Callable[[str], None] | None = None) -> SteadyCalibration:
+    """Stage 1 on the aircraft's POH data, with baseline and calibrated evaluations."""
+    root = Path(root)
+    t0 = time.perf_counter()
+    say = progress or (lambda s: None)
+    data = aircraft_data(root, name)
+    climb, cruise = data["poh_climb"], data["poh_cruise"]
+    sim = Simulator(root, name, baseline=True)
+    say(f"baseline: trimming {len(climb) + len(cruise)} POH points")
+    baseline = {k: evaluate_dataset(sim, ds, model_kind="baseline") for k, ds in data.items()}
+    ci, ki = default_subset(climb, 9), default_subset(cruise, 7)
+    fit, ff = steady_stage(sim, climb, cruise, start=start, climb_points=ci, cruise_points=ki, progress=say)
+    sim.set_factors(ff.final)
+    say(f"calibrated: trimming {len(climb) + len(cruise)} POH points")
+    calibrated = {k: evaluate_dataset(sim, ds) for k, ds in data.items()}
+    trims = sim.trims
+    sim.close()
+    return SteadyCalibration(name, fit, ff, baseline, calibrated,
+                             {k: thesis_summary(ds) for k, ds in data.items()}, ff.final,
+                             time.perf_counter() - t0, trims, ci, ki)
+
+
+def write_product(root: Path | str, name: str, factors: FactorSet, stage: str, record: dict) -> list[Path]:
+    """Write calibrated factors into the aircraft: XML property values, baked propeller
+    tables and the calibration record. Returns the files written."""
+    paths = AircraftPaths(Path(root), name)
+    geom = load_aircraft_geometry(paths.root, name)
+    tree = etree.parse(str(paths.aircraft_xml))
+    xmlmodel.set_factor_values(tree, factors)
+    xmlmodel.write(tree, paths.aircraft_xml)
+    bem = read_bem_csv(paths.propeller_bem)
+    xmlmodel.write(propeller_tree(geom, bem, factors, paths), paths.propeller_xml)
+    rec = json.loads(paths.calibration.read_text()) if paths.calibration.is_file() else {}
+    rec["aircraft"] = name
+    rec["jsbsim_calib"] = __version__
+    rec["factors"] = {k: round(v, 10) for k, v in factors.items()}
+    rec.setdefault("stages", {})[stage] = record
+    paths.calibration.write_text(json.dumps(rec, indent=2) + "\n")
+    return [paths.aircraft_xml, paths.propeller_xml, paths.calibration]
+
+
+def aero_curves(sim: Simulator, alphas_deg=np.arange(-6.0, 22.01, 1.0), ktas: float = 90.0,
+                pressure_alt_ft: float = 5000.0) -> dict[str, np.ndarray]:
+    """Whole-aircraft CL and CD (aerodynamic forces only) vs alpha, elevator neutral, clean."""
+    fdm = sim.fdm
+    sim.set_loading(2400.0)
+    sim.set_atmosphere(pressure_alt_ft, float(288.15 - 0.0019812 * pressure_alt_ft))
+    V = ktas * KT / FT
+    CL, CD = [], []
+    fdm["fcs/flap-cmd-norm"] = 0.0
+    for c in ("fcs/elevator-cmd-norm", "fcs/aileron-cmd-norm", "fcs/rudder-cmd-norm"):
+        fdm[c] = 0.0
+    for a_deg in alphas_deg:
+        a = math.radians(a_deg)
+        fdm["ic/phi-rad"] = 0.0
+        fdm["ic/theta-rad"] = a
+        fdm["ic/u-fps"] = V * math.cos(a)
+        fdm["ic/v-fps"] = 0.0
+        fdm["ic/w-fps"] = V * math.sin(a)
+        for r in ("p", "q", "r"):
+            fdm[f"ic/{r}-rad_sec"] = 0.0
+        fdm.run_ic()
+        fdm.run()
+        q = fdm["aero/qbar-psf"] * fdm["metrics/Sw-sqft"]
+        fx, fz = fdm["forces/fbx-aero-lbs"], fdm["forces/fbz-aero-lbs"]
+        CL.append((fx * math.sin(a) - fz * math.cos(a)) / q)
+        CD.append((-fx * math.cos(a) - fz * math.sin(a)) / q)
+    return {"alpha_deg": np.asarray(alphas_deg, float), "CL": np.array(CL), "CD": np.array(CD)}
+
+
+def propeller_tables_for(root: Path | str, name: str, factors: FactorSet):
+    paths = AircraftPaths(Path(root), name)
+    bem = read_bem_csv(paths.propeller_bem)
+    return apply_factors(bem, PropellerFactors(**factors.propeller()))
