@@ -146,16 +146,20 @@ def bem_csv_text(tables: PropellerTables) -> str:
 
 
 def read_bem_csv(path: Path) -> PropellerTables:
-    rows = [l.split(",") for l in path.read_text().splitlines() if l and not l.startswith("#")][1:]
+    return parse_bem_csv(path.read_text(), str(path))
+
+
+def parse_bem_csv(text: str, source: str = "propeller_bem.csv") -> PropellerTables:
+    rows = [l.split(",") for l in text.splitlines() if l and not l.startswith("#")][1:]
     J = np.array(sorted({float(r[0]) for r in rows}))
     if rows[0][1] == "":
         CT = np.array([float(r[2]) for r in rows])
         CP = np.array([float(r[3]) for r in rows])
-        return PropellerTables(J, None, CT, CP, {"source": str(path)})
+        return PropellerTables(J, None, CT, CP, {"source": source})
     B = np.array(sorted({float(r[1]) for r in rows}))
     CT = np.array([float(r[2]) for r in rows]).reshape(len(J), len(B))
     CP = np.array([float(r[3]) for r in rows]).reshape(len(J), len(B))
-    return PropellerTables(J, B, CT, CP, {"source": str(path)})
+    return PropellerTables(J, B, CT, CP, {"source": source})
 
 
 def propeller_tree(geom: AircraftGeometry, base: PropellerTables, factors: FactorSet, paths: AircraftPaths):
@@ -273,7 +277,8 @@ def build(name: str, root: Path = Path("."), *, factors: FactorSet | None = None
         factors = FactorSet() if baseline else read_calibration(paths)
     aero = build_aero(geom, airfoils, progress=lambda s: say(f"aerodynamics: {s}"))
     say("propeller: blade-element momentum")
-    bem = propeller_base_tables(geom, root)
+    # the tables are baked from their stored (rounded) form, as calibration re-bakes them
+    bem = parse_bem_csv(bem_csv_text(propeller_base_tables(geom, root)))
     say("engine: FGPiston design")
     piston = design_piston(geom.engine, paths.engine_file)
     travel = f"Control travel from {geom.control_travel_file.name}." if geom.control_travel_file else ""

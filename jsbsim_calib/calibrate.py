@@ -28,7 +28,7 @@ from .factors import REGISTRY, FactorSet, stage_factors
 from .fdm import Condition, Simulator, TrimResult
 
 FAIL_PENALTY = 20.0          # per failed trim (method eq. 3.33)
-PRIOR_WEIGHT = 0.05          # weak pull of normalized factors toward neutral (see fit)
+PRIOR_WEIGHT = 0.1           # weak pull of normalized factors toward neutral (see fit)
 THROTTLE_TOL = 0.05          # throttle above 1 per 0.05 (eq. 3.32)
 
 
@@ -139,8 +139,8 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
 
     ``prior`` adds the residuals ``prior * x`` (x = normalized factor, 0 = neutral): a weak
     pull toward neutral that picks, among factor sets the data cannot tell apart, the one
-    closest to the physics-based model (a factor at its bound costs prior^2 = 0.0025, less
-    than a tenth of a tolerance on one point).
+    closest to the physics-based model (a factor at its bound costs prior^2 = 0.01, a tenth
+    of a tolerance on one point).
     """
     names = list(names)
     t0 = time.perf_counter()

@@ -641,7 +641,8 @@ def set_factor_values(tree: etree._ElementTree, factors: Mapping[str, float]) ->
     found = set()
     for el in tree.iter("property"):
         name = (el.text or "").strip()
-        if name in by_prop and by_prop[name] in factors:
+        # declarations carry a value attribute; references inside functions do not
+        if el.get("value") is not None and name in by_prop and by_prop[name] in factors:
             el.set("value", fmt(factors[by_prop[name]], 10))
             found.add(by_prop[name])
     missing = set(factors) - found

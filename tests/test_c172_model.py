@@ -104,8 +104,9 @@ def test_committed_model_loads_and_declares_every_factor():
 
 # --------------------------------------------------------------------------- plausibility
 @pytest.fixture(scope="module")
-def derivatives(committed) -> dict[str, Derivatives]:
-    return {"cruise": trim_derivatives(committed, CRUISE), "climb": trim_derivatives(committed, CLIMB)}
+def derivatives(baseline_sim) -> dict[str, Derivatives]:
+    # plausibility is required of the uncalibrated model (the strip-theory physics)
+    return {"cruise": trim_derivatives(baseline_sim, CRUISE), "climb": trim_derivatives(baseline_sim, CLIMB)}
 
 
 @pytest.mark.parametrize("case", ["cruise", "climb"])
@@ -126,8 +127,8 @@ def test_lateral_directional_stability_and_damping(derivatives, case):
 
 
 @pytest.mark.parametrize("case", [CRUISE, CLIMB], ids=["cruise", "climb"])
-def test_static_stability_across_cg_range(committed, case):
-    res = [trim_derivatives(committed, Condition(**{**case.__dict__, "weight_lb": w, "cg_in": cg}))
+def test_static_stability_across_cg_range(baseline_sim, case):
+    res = [trim_derivatives(baseline_sim, Condition(**{**case.__dict__, "weight_lb": w, "cg_in": cg}))
            for cg, w in CG_POINTS]
     for (cg, w), d in zip(CG_POINTS, res):
         assert d.cg_in == pytest.approx(cg, abs=1e-6)
@@ -136,27 +137,27 @@ def test_static_stability_across_cg_range(committed, case):
     # consistency of the moment transfer: moving the CG aft by dx (same weight) raises
     # Cm_alpha by about CN_alpha dx / cbar (CN_alpha = CL_alpha + CD, body normal force)
     d41, d47 = res[1], res[2]
-    cbar_in = committed.fdm["metrics/cbarw-ft"] * 12.0
+    cbar_in = baseline_sim.fdm["metrics/cbarw-ft"] * 12.0
     expected = d41.CL_alpha * (47.3 - 41.0) / cbar_in
     assert d47.Cm_alpha - d41.Cm_alpha == pytest.approx(expected, rel=0.1)
 
 
 @pytest.mark.parametrize("cg_in", [41.0, 47.3], ids=["forward", "aft"])
-def test_clean_power_off_stall_speed(committed, cg_in):
-    s = stall_speed(committed, 2550.0, cg_in, flaps_deg=0.0, pressure_alt_ft=0.0, power="idle")
+def test_clean_power_off_stall_speed(baseline_sim, cg_in):
+    s = stall_speed(baseline_sim, 2550.0, cg_in, flaps_deg=0.0, pressure_alt_ft=0.0, power="idle")
     assert math.isfinite(s.kcas), s.reason
     assert 47.0 <= s.kcas <= 55.0, f"stall {s.kcas:.1f} KCAS at CG {cg_in} in ({s.reason})"
     assert s.kias == pytest.approx(s.kcas, abs=1e-9)          # identity airspeed calibration
     assert s.cl_max > 1.2 and 10.0 < s.alpha_deg < 25.0
     # 0.5 kt above the stall the glide trims, elevator within its stops
-    r = committed.trim(Condition(0.0, 2550.0, kcas=s.kcas + 0.5, cg_in=cg_in, mode="full_throttle", throttle=0.0))
+    r = baseline_sim.trim(Condition(0.0, 2550.0, kcas=s.kcas + 0.5, cg_in=cg_in, mode="full_throttle", throttle=0.0))
     assert r.trimmed, r.reason
 
 
-def test_stall_speed_falls_with_flaps_and_aft_cg(committed):
-    fwd = stall_speed(committed, 2550.0, 41.0)
-    aft = stall_speed(committed, 2550.0, 47.3)
-    flaps = stall_speed(committed, 2550.0, 41.0, flaps_deg=30.0)
+def test_stall_speed_falls_with_flaps_and_aft_cg(baseline_sim):
+    fwd = stall_speed(baseline_sim, 2550.0, 41.0)
+    aft = stall_speed(baseline_sim, 2550.0, 47.3)
+    flaps = stall_speed(baseline_sim, 2550.0, 41.0, flaps_deg=30.0)
     assert aft.kcas < fwd.kcas
     assert flaps.kcas < fwd.kcas - 2.0
     assert flaps.cl_max > fwd.cl_max
@@ -479,3 +480,12 @@ def test_factor_moves_result_as_documented(baseline, name):
 
 def test_every_check_is_a_factor():
     assert set(CHECKS) <= set(REGISTRY)
+
+
+def test_calibrated_product_keeps_stable_signs(committed):
+    """The shipped (calibrated) aircraft keeps the stability signs of the physics."""
+    for cond in (CRUISE, CLIMB):
+        d = trim_derivatives(committed, cond)
+        assert d.Cm_alpha < 0 and d.Cn_beta > 0 and d.Cl_beta < 0
+        assert d.Cl_p < 0 and d.Cm_q < 0 and d.Cn_r < 0
+        assert 3.5 < d.CL_alpha < 6.0
