@@ -86,13 +86,13 @@ SCHEMAS: dict[str, Schema] = {
 
 
 def _kind_of(columns: set[str]) -> str | None:
-    if {"vs_fpm", "pitch_deg", "cg_in"} <= columns:
+    if {"vs_fpm", "pitch_deg"} <= columns:
         return "snapshot"
-    if "ktas" in columns and "roc_fpm" in columns and "flaps_deg" in columns and "kias" not in columns:
+    if "roc_fpm" in columns and "ktas" in columns:
         return "flap_climb"
-    if "kias" in columns and "roc_fpm" in columns:
+    if "roc_fpm" in columns:
         return "poh_climb"
-    if "ktas" in columns and ({"rpm", "pct_power", "gph"} & columns):
+    if "ktas" in columns or ({"rpm", "pct_power", "gph"} & columns):
         return "poh_cruise"
     return None
 

@@ -111,6 +111,8 @@ def write_product(root: Path | str, name: str, factors: FactorSet, stage: str, r
     """Write calibrated factors into the aircraft: XML property values, baked propeller
     tables and the calibration record. Returns the files written."""
     paths = AircraftPaths(Path(root), name)
+    # the record stores 10 decimals; write exactly those values so 'generate' reproduces the files
+    factors = FactorSet({k: round(v, 10) for k, v in factors.items()})
     geom = load_aircraft_geometry(paths.root, name)
     tree = etree.parse(str(paths.aircraft_xml))
     xmlmodel.set_factor_values(tree, factors)
