@@ -49,7 +49,8 @@ def poh_climb_conditions(ds: Dataset, geom: AircraftGeometry) -> list[Condition]
 def poh_cruise_conditions(ds: Dataset, geom: AircraftGeometry) -> list[Condition]:
     """Level flight at KTAS, throttle trims, best-power mixture."""
     return [Condition(pressure_alt_ft=r.pressure_alt_ft, weight_lb=r.weight_lb, ktas=r.ktas, mode="level",
-                      flaps_deg=r.flaps_deg, **_temperature(r))
+                      flaps_deg=r.flaps_deg, rpm=r.get("rpm") if np.isfinite(r.get("rpm", np.nan)) else None,
+                      **_temperature(r))
             for _, r in ds.frame.iterrows()]
 
 

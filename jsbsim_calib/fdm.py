@@ -69,6 +69,7 @@ class Condition:
     turn: str = "straight"                # straight (heading fixed) | coordinated
     mixture: str | float = "cruise"       # POH procedure: cruise | climb | explicit mixture command
     fuel_fraction: float | None = None    # None: the aircraft's default for POH points
+    rpm: float | None = None              # governor setting of a constant-speed propeller (None: maximum)
 
     def __post_init__(self):
         if (self.kcas is None) == (self.ktas is None):
@@ -193,6 +194,7 @@ class Simulator:
         xmlmodel.write(tree, self._box_paths.propeller_xml)
 
     def _load(self) -> jsbsim.FGFDMExec:
+        jsbsim.FGJSBBase().debug_lvl = 0      # no start-up banner on stdout (JSON goes there)
         fdm = jsbsim.FGFDMExec(str(self._box))
         fdm.set_debug_level(0)
         fdm.disable_output()
@@ -316,8 +318,15 @@ class Simulator:
         t_std = float(isa_temperature(cond.pressure_alt_ft * FT))
         full = cond.mode == "full_throttle"
         speed_free = cond.mode == "level_full_throttle"
+        cs = self.geometry.propeller
+        governed = cs.constant_speed
         scale = np.array([G_FT, G_FT, G_FT, 1.0, 1.0, 1.0])
         V0 = V
+        if governed:
+            # an ideal governor: the blade angle is a trim unknown that holds the set RPM
+            rpm_set = min(cs.max_rpm, max(cs.min_rpm, cond.rpm if cond.rpm is not None else cs.max_rpm))
+            fdm["propulsion/engine/constant-speed-mode"] = 0.0
+            fdm["fcs/advance-cmd-norm"] = (rpm_set - cs.min_rpm) / max(1.0, cs.max_rpm - cs.min_rpm)
 
         def set_state(x):
             a, b = x[0], x[1]
@@ -346,6 +355,8 @@ class Simulator:
             fdm["fcs/elevator-cmd-norm"] = x[3]
             fdm["fcs/aileron-cmd-norm"] = x[4]
             fdm["fcs/rudder-cmd-norm"] = x[5]
+            if governed:
+                fdm["propulsion/engine/blade-angle"] = min(max(x[6], cs.min_pitch_deg), cs.max_pitch_deg)
             fdm.run_ic()
             fdm.get_propulsion().get_steady_state()
             fdm.run()
@@ -354,8 +365,13 @@ class Simulator:
             self.evals += 1
             set_state(x)
             r = np.array([fdm[p] for p in ACCELS]) / scale
+            if governed:
+                # past a pitch stop the blade stays on the stop and the unknown measures the
+                # RPM the governor cannot hold (under-speed on the fine stop, over-speed on the coarse)
+                beyond = x[6] - min(max(x[6], cs.min_pitch_deg), cs.max_pitch_deg)
+                r = np.append(r, (fdm["propulsion/engine/engine-rpm"] - rpm_set) / 100.0 - beyond / 10.0)
             if not np.all(np.isfinite(r)):
-                return np.full(6, 1e3)
+                return np.full(len(x), 1e3)
             # keep the solver inside the physical ranges: continue the residual linearly past them
             excess = max(0.0, abs(x[3]) - 1) + max(0.0, abs(x[4]) - 1) + max(0.0, abs(x[5]) - 1)
             return r + 10.0 * excess * np.sign(r + 1e-12)
@@ -365,6 +381,8 @@ class Simulator:
         cl = cond.weight_lb / max(q * S, 1e-6)
         a0 = max(-0.1, min(0.25, (cl - 0.25 - 0.02 * cond.flaps_deg) / 4.8))
         cold = np.array([a0, 0.0, a0 + 0.08 if full else (1.0 if speed_free else 0.65), 0.0, 0.0, 0.0])
+        if governed:
+            cold = np.append(cold, 0.5 * (cs.min_pitch_deg + cs.max_pitch_deg))
         self.fdm.suspend_integration()
         best = None
         nfev = 0
@@ -425,6 +443,10 @@ class Simulator:
         for i, name in ((3, "elevator"), (4, "aileron"), (5, "rudder")):
             if abs(x[i]) > CONTROL_LIMIT:
                 problems.append(f"{name} beyond its stop ({x[i]:+.2f} of travel)")
+        if governed:
+            out.extra["blade_angle_deg"] = float(min(max(x[6], cs.min_pitch_deg), cs.max_pitch_deg))
+            out.extra["governor"] = ("fine stop" if x[6] < cs.min_pitch_deg - 1e-6 else
+                                     "coarse stop" if x[6] > cs.max_pitch_deg + 1e-6 else "governing")
         if cond.mode == "level" and x[2] > 1.0 + 1e-4:
             problems.append(f"needs more than full throttle ({fdm[TRIM_AID]:.0f} lbf short)")
         if cond.mode == "level" and x[2] < -1e-4:

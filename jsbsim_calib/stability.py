@@ -366,17 +366,35 @@ def default_stall_cases(sim: Simulator) -> tuple[StallCase, ...]:
     return tuple(StallCase(round(w, 6), round(cg, 6), f) for f in flaps for cg in (fwd, aft))
 
 
-def report(sim: Simulator, conditions: Mapping[str, Condition],
+def default_conditions(sim: Simulator) -> dict[str, Condition]:
+    """Named conditions for :func:`report`: at maximum weight, level cruise at a lift
+    coefficient of 0.3 and a full-throttle climb at 0.8, 3000 ft ISA, both CG limits."""
+    m = sim.geometry.mass
+    w_lb = m.max_mass_kg / 0.45359237
+    area_ft2 = sim.geometry.reference.wing_area_m2 / 0.3048**2
+    out = {}
+    for label, cg_m in (("fwd", float(np.interp(m.max_mass_kg, m.cg_envelope_mass_kg, m.cg_envelope_fwd_m))),
+                        ("aft", float(np.interp(m.max_mass_kg, m.cg_envelope_mass_kg, m.cg_envelope_aft_m)))):
+        for name, cl, mode in (("cruise", 0.3, "level"), ("climb", 0.8, "full_throttle")):
+            kcas = math.sqrt(w_lb / (0.5 * 0.0023769 * area_ft2 * cl)) / 1.68781
+            out[f"{name} {label} CG"] = Condition(pressure_alt_ft=3000.0, weight_lb=round(w_lb, 1),
+                                                  kcas=round(kcas, 1), cg_in=round(cg_m / 0.0254, 2),
+                                                  mode=mode, mixture="climb" if mode != "level" else "cruise")
+    return out
+
+
+def report(sim: Simulator, conditions: Mapping[str, Condition] | None = None,
            stall_cases: Sequence[StallCase] | None = None) -> dict:
     """Derivatives at each named condition and stall speeds, as a JSON-safe dict.
 
-    ``stall_cases`` defaults to :func:`default_stall_cases`. A condition that does not
+    ``conditions`` defaults to :func:`default_conditions`, ``stall_cases`` to
+    :func:`default_stall_cases`. A condition that does not
     trim is reported with its reason instead of derivatives.
     """
     out: dict = {"aircraft": sim.name, "factors_changed": dict(sim.factors.changed()),
                  "axes": "body axes, moments about the CG, alphadot = 0; rates per unit p b/(2V), q cbar/(2V), r b/(2V)",
                  "derivatives": {}, "stall": []}
-    for name, cond in conditions.items():
+    for name, cond in (default_conditions(sim) if conditions is None else conditions).items():
         try:
             out["derivatives"][name] = trim_derivatives(sim, cond).as_dict()
         except TrimError as exc:

@@ -12,7 +12,7 @@ import pytest
 from jsbsim_calib.build import AircraftPaths, build, generate
 from jsbsim_calib.errors import GeometryError
 
-AIRCRAFT = ("c172",)
+AIRCRAFT = ("c172", "sr20")
 
 
 @pytest.mark.parametrize("name", AIRCRAFT)
@@ -33,16 +33,18 @@ def test_generate_twice_gives_identical_bytes(generated_root):
     assert before == after
 
 
-def test_loads_from_the_repository_root(repo):
+@pytest.mark.parametrize("name", AIRCRAFT)
+def test_loads_from_the_repository_root(repo, name):
     fdm = jsbsim.FGFDMExec(str(repo))
     fdm.set_debug_level(0)
-    assert fdm.load_model("c172")
+    assert fdm.load_model(name)
 
 
-def test_jsbsim_runner_trims_and_flies_60s_of_cruise(repo, tmp_path):
+@pytest.mark.parametrize("name", AIRCRAFT)
+def test_jsbsim_runner_trims_and_flies_60s_of_cruise(repo, tmp_path, name):
     """JSBSim's own runner (pip wheel 'jsbsim' command) flies the generated script."""
     runner = shutil.which("jsbsim") or str(Path(sys.executable).with_name("jsbsim"))
-    out = subprocess.run([runner, "--root", str(repo), "--nohighlight", str(repo / "scripts" / "c172_cruise.xml")],
+    out = subprocess.run([runner, "--root", str(repo), "--nohighlight", str(repo / "scripts" / f"{name}_cruise.xml")],
                          capture_output=True, text=True, timeout=300, cwd=tmp_path)
     text = out.stdout.replace("\0", "") + out.stderr.replace("\0", "")
     assert out.returncode == 0, text[-2000:]
