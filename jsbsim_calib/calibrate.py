@@ -134,13 +134,14 @@ def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray) -> tuple[d
 def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[[FactorSet], tuple[np.ndarray, list[str]]],
         *, sim: Simulator, diff_step: float = 0.02, max_nfev: int | None = None,
         progress: Callable[[str], None] | None = None, ftol: float = 1e-6, xtol: float = 1e-6,
-        gtol: float = 1e-8, prior: float = PRIOR_WEIGHT) -> FitResult:
+        gtol: float = 1e-8, prior: float = PRIOR_WEIGHT, prior_center: FactorSet | None = None) -> FitResult:
     """Least-squares fit of ``names`` (others held at ``start``).
 
-    ``prior`` adds the residuals ``prior * x`` (x = normalized factor, 0 = neutral): a weak
+    ``prior`` adds the residuals ``prior * (x - x_neutral)`` (x = normalized factor): a weak
     pull toward neutral that picks, among factor sets the data cannot tell apart, the one
-    closest to the physics-based model (a factor at its bound costs prior^2 = 0.01, a tenth
-    of a tolerance on one point).
+    closest to the physics-based model (a factor moved across half its range costs about
+    prior^2 = 0.01, a tenth of a tolerance on one point). ``prior_center``: pull toward these
+    values instead of neutral (a refit that should move factors only as far as it must).
     """
     names = list(names)
     t0 = time.perf_counter()
@@ -149,6 +150,7 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     bad = [n for n, x in zip(names, x0) if not -1.0 <= x <= 1.0]
     if bad:
         raise ValueError(f"start values outside the bounds of {', '.join(bad)}")
+    x_neutral = (prior_center or FactorSet()).vector(names)
     labels: list[str] = []
     history: list[dict] = []
     best = {"cost": math.inf, "x": x0}
@@ -157,7 +159,7 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
         fs = start.with_vector(names, np.clip(x, -1, 1))
         r, lab = residuals(fs)
         if prior:
-            r = np.concatenate([r, prior * fs.vector(names)])
+            r = np.concatenate([r, prior * (fs.vector(names) - x_neutral)])
             lab = list(lab) + [f"prior {n}" for n in names]
         labels[:] = lab
         c = 0.5 * float(r @ r)
@@ -199,7 +201,7 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     final = start.with_vector(names, np.clip(res.x, -1, 1))
     r_final, _ = residuals(final)             # leaves the simulator at the final factors
     if prior:
-        r_final = np.concatenate([r_final, prior * final.vector(names)])
+        r_final = np.concatenate([r_final, prior * (final.vector(names) - x_neutral)])
     se, corr = _stderr(res.jac, names, r_final)
     return FitResult(stage, names, start, final, cost0, 0.5 * float(r_final @ r_final), res.nfev,
                      njev[0], int(res.status), str(res.message), time.perf_counter() - t0,
@@ -254,9 +256,11 @@ def trim_points(sim: Simulator, ps: PointSet) -> list[TrimResult]:
 
 
 def point_residuals(sim: Simulator, ps: PointSet, metrics: Sequence[str],
-                    results: list[TrimResult] | None = None) -> tuple[list[float], list[str], int]:
-    """Residuals (model - data)/tolerance of a point set, with the throttle penalty for level
-    points that need more than full throttle. Returns residuals, labels, number failed."""
+                    results: list[TrimResult] | None = None,
+                    tol_scale: float = 1.0) -> tuple[list[float], list[str], int]:
+    """Residuals (model - data)/(tolerance x ``tol_scale``) of a point set, with the throttle
+    penalty for level points that need more than full throttle. Returns residuals, labels,
+    number failed."""
     value = KINDS[ps.dataset.kind].value
     res, lab, failed = [], [], 0
     results = results if results is not None else trim_points(sim, ps)
@@ -270,8 +274,7 @@ def point_residuals(sim: Simulator, ps: PointSet, metrics: Sequence[str],
         if past_stop:
             # compare what the aircraft does at full throttle (speed falls short), as the
             # evaluation does: continuous with the level trim at the stop
-            ft = sim.trim(replace(cond, mode="level_full_throttle", throttle=1.0),
-                          key=(str(ps.dataset.path), ps.indices[k], "full throttle"))
+            ft = sim.trim_at_stop(cond, key=(str(ps.dataset.path), ps.indices[k]))
             if ft.trimmed:
                 t = ft
         ok = t.trimmed or past_stop
@@ -282,7 +285,7 @@ def point_residuals(sim: Simulator, ps: PointSet, metrics: Sequence[str],
             if not np.isfinite(ref):
                 continue
             v = value(m, t) if ok else np.nan
-            tol = METRICS[m].tol_for(ref)
+            tol = METRICS[m].tol_for(ref) * tol_scale
             res.append((v - ref) / tol if np.isfinite(v) else 0.0)
             lab.append(f"{ps.name}[{ps.indices[k]}].{m}")
         if cond.mode == "level":
@@ -322,3 +325,155 @@ def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: Fact
 
     ff = fit("fuel flow", ["K_FF"], main.final, ff_residuals, sim=sim, diff_step=diff_step, progress=progress)
     return main, ff
+
+
+# --------------------------------------------------------------------------- stage 2a
+@dataclass(frozen=True)
+class Residual:
+    """Residuals of one step: a data kind, which of its points, which metric."""
+
+    kind: str            # snapshot | flap_climb | poh_climb | poh_cruise
+    points: str          # all | clean (flaps up) | flaps (flaps down) | subset (the stage-1 subset)
+    metric: str
+
+
+@dataclass(frozen=True)
+class TrimStep:
+    """One step of the flight-test stage: the factors it fits, the residuals it fits them
+    to, and the residuals it holds: the model's own predictions at the step's start, with
+    :data:`HOLD_TOL_SCALE` of the tolerances, so that the step cannot buy its fit with
+    what earlier steps (or stage 1) already matched. Each step starts from the factors of
+    the steps before it and freezes them."""
+
+    name: str
+    factors: tuple[str, ...]
+    residuals: tuple[Residual, ...]
+    doc: str
+    hold: tuple[Residual, ...] = ()
+    prior_at_start: bool = False     # pull factors toward their values at the step's start, not neutral
+
+
+HOLD_TOL_SCALE = 0.25
+SUBSET_SIZE = {"poh_climb": 9, "poh_cruise": 7}
+POH_HOLD = (Residual("poh_climb", "subset", "roc_fpm"), Residual("poh_cruise", "subset", "pct_power"),
+            Residual("poh_cruise", "subset", "rpm"))
+FLIGHT_TEST_HOLD = tuple(Residual("snapshot", "all", m) for m in ("pitch_deg", "elevator_deg", "aileron_deg",
+                                                                    "rudder_deg")) \
+    + (Residual("flap_climb", "all", "roc_fpm"),)
+
+TRIM_STEPS: tuple[TrimStep, ...] = (
+    TrimStep("pitch", ("alpha_shift_addl", "K_cm_slope", "K_cm_offset"),
+             (Residual("snapshot", "clean", "pitch_deg"),),
+             "pitching moment (method 3.2.1): pitch attitude of the flaps-up snapshots / 1 deg", POH_HOLD),
+    TrimStep("control", ("K_de_slope", "K_de_offset", "K_da_slope", "K_da_offset", "K_dr_slope", "K_dr_offset"),
+             (Residual("snapshot", "clean", "elevator_deg"), Residual("snapshot", "all", "aileron_deg"),
+              Residual("snapshot", "all", "rudder_deg")),
+             "control effectiveness (method 3.2.2): trim surfaces / 1 deg; the elevator of flaps-down "
+             "snapshots waits for the flap step (the flap moment is not fitted yet)", POH_HOLD),
+    TrimStep("pfactor", ("K_PF", "K_dr_slope", "K_dr_offset"), (Residual("snapshot", "all", "rudder_deg"),),
+             "P-factor (method 3.2.2, eq. 3.41): rudder of all snapshots / 1 deg; the rudder factors are "
+             "refitted with K_PF (the control step could not see the thrust-dependent yaw and set them for it)",
+             POH_HOLD),
+    TrimStep("flaps", ("K_dcd0_flaps", "K_dcm_flaps", "K_dcl_flaps"),
+             (Residual("flap_climb", "all", "roc_fpm"), Residual("snapshot", "flaps", "pitch_deg"),
+              Residual("snapshot", "flaps", "elevator_deg")),
+             "flap aerodynamics (method 3.2.3): flaps-down climb rate / 100 fpm and pitch / 1 deg, plus the "
+             "flaps-down trim elevator / 1 deg (where the flap moment shows most) and a flap-lift factor "
+             "(the flaps-down attitude is set by the flap lift, which the method's two factors cannot move)",
+             POH_HOLD),
+    TrimStep("steady refit", tuple(STEADY_NAMES) + ("K_FF",),
+             (Residual("poh_climb", "subset", "roc_fpm"), Residual("poh_cruise", "subset", "pct_power"),
+              Residual("poh_cruise", "subset", "rpm"), Residual("poh_cruise", "subset", "gph")),
+             "stage 1 again from its values, the flight-test factors frozen: the trims bring drag the POH fit "
+             "did not see (a 5 deg climb rudder, the trimmed tail load); the flight-test predictions are held "
+             "and the factors are pulled toward their stage-1 values",
+             FLIGHT_TEST_HOLD, prior_at_start=True),
+)
+
+
+def _select(ds: Dataset, which: str) -> list[int]:
+    if which == "subset":
+        return default_subset(ds, SUBSET_SIZE.get(ds.kind, 8))
+    flaps = ds.frame["flaps_deg"].to_numpy(float) if "flaps_deg" in ds.frame else np.zeros(len(ds))
+    if which == "clean":
+        return [i for i, f in enumerate(flaps) if f == 0.0]
+    if which == "flaps":
+        return [i for i, f in enumerate(flaps) if f > 0.0]
+    return list(range(len(ds)))
+
+
+def _point_sets(sim: Simulator, data: dict[str, Dataset], residuals: Sequence[Residual]):
+    groups: dict[tuple[str, str], list[str]] = {}
+    for r in residuals:
+        groups.setdefault((r.kind, r.points), []).append(r.metric)
+    sets = []
+    for (kind, which), metrics in groups.items():
+        ds = data.get(kind)
+        idx = _select(ds, which) if ds is not None else []
+        if idx:
+            sets.append(PointSet.from_dataset(ds, sim, idx, metrics))
+    return sets
+
+
+def held_sets(sim: Simulator, data: dict[str, Dataset], hold: Sequence[Residual]) -> list[PointSet]:
+    """Point sets whose targets are the current model's own predictions."""
+    out = []
+    for ps in _point_sets(sim, data, hold):
+        kind = ps.dataset.kind
+        frame = ps.dataset.frame.copy()
+        for m in ps.metrics:
+            frame[m] = np.nan
+        for i, cond in zip(ps.indices, ps.conditions):
+            t = sim.trim_level(cond) if cond.mode == "level" else sim.trim(cond)
+            if t.trimmed:
+                for m in ps.metrics:
+                    frame.loc[frame.index[i], m] = KINDS[kind].value(m, t)
+        out.append(replace(ps, name=f"{ps.name} (held)", dataset=replace(ps.dataset, frame=frame)))
+    return out
+
+
+def trims_stage(sim: Simulator, data: dict[str, Dataset], *, start: FactorSet,
+                steps: Sequence[TrimStep] = TRIM_STEPS, progress: Callable[[str], None] | None = None,
+                diff_step: float = 0.02, max_nfev: int | None = 40, prior: float = PRIOR_WEIGHT,
+                after_step: Callable[[TrimStep, FitResult], None] | None = None) -> list[FitResult]:
+    """Method stage 2a: the trim steps in order, each from the factors of the last.
+
+    ``data`` maps a kind (``snapshot``, ``flap_climb``, ``poh_climb``, ``poh_cruise``) to
+    its dataset; a step whose own residuals have no data is skipped with a note.
+    ``after_step`` is called after each fit (for evaluations between steps).
+    """
+    results = []
+    current = start
+    for step in steps:
+        sets = _point_sets(sim, data, step.residuals)
+        if not sets:
+            if progress:
+                progress(f"{step.name}: no data for this step, skipped")
+            continue
+        sim.set_factors(current)
+        held = held_sets(sim, data, step.hold)
+
+        def residuals(fs: FactorSet, sets=sets, held=held):
+            sim.set_factors(fs)
+            res, lab, failed = [], [], 0
+            for ps, scale in [(p, 1.0) for p in sets] + [(p, HOLD_TOL_SCALE) for p in held]:
+                r, l, f = point_residuals(sim, ps, ps.metrics, tol_scale=scale)
+                res += r
+                lab += l
+                failed += f
+            return np.array(res + [FAIL_PENALTY * failed]), lab + ["trim failures"]
+
+        out = fit(step.name, list(step.factors), current, residuals, sim=sim, diff_step=diff_step,
+                  progress=progress, max_nfev=max_nfev, prior=prior,
+                  prior_center=current if step.prior_at_start else None)
+        out.notes.append(step.doc)
+        for ps, what in [(p, "fitted") for p in sets] + [(p, "held at the step's start") for p in held]:
+            rows = [str(ps.dataset.frame["table"].iloc[i]) if "table" in ps.dataset.frame else str(i)
+                    for i in ps.indices]
+            out.notes.append(f"{what}: {', '.join(ps.metrics)} of {ps.dataset.path.name} rows {', '.join(rows)}")
+        results.append(out)
+        current = out.final
+        sim.set_factors(current)
+        if after_step:
+            after_step(step, out)
+    return results

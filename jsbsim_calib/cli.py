@@ -36,45 +36,81 @@ def cmd_generate(a) -> int:
     return 0
 
 
+def _calibrate_steady(a, root: Path, say):
+    from .build import AircraftPaths, read_calibration
+    from .evaluate import format_summary
+    from .report import write_steady_report
+    from .workflow import run_steady, write_product
+    start = read_calibration(AircraftPaths(root, a.aircraft)) if a.start == "current" else None
+    res = run_steady(root, a.aircraft, start=start, progress=say)
+    print(res.fit.report())
+    print(res.fuel_flow.report())
+    for kind in res.calibrated:
+        print(f"\n{kind}: baseline")
+        print(format_summary(res.baseline[kind].summary()))
+        print(f"{kind}: calibrated")
+        print(format_summary(res.calibrated[kind].summary()))
+        if res.thesis.get(kind):
+            print(f"{kind}: thesis model (same points)")
+            print(format_summary(res.thesis[kind]))
+    print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims")
+    if not a.no_write:
+        files = write_product(root, a.aircraft, res.factors, "steady", res.summary())
+        print("written: " + ", ".join(str(f) for f in files))
+    print(f"report: {write_steady_report(res, root, Path(a.report_dir) / a.aircraft)}")
+    return res.factors
+
+
+def _calibrate_trims(a, root: Path, say, start=None):
+    from .evaluate import format_summary
+    from .report import write_trims_report
+    from .workflow import run_trims, steady_factors, write_product
+    res = run_trims(root, a.aircraft, skip=tuple(a.skip or ()), progress=say,
+                    start=None if start is None else steady_factors(start))
+    for r in res.steps:
+        print(r.report())
+    last = list(res.evaluations)[-1]
+    for kind in res.evaluations["steady"]:
+        for label in ("steady", last):
+            print(f"\n{kind}: {'stage 1 model' if label == 'steady' else 'after ' + label}")
+            print(format_summary(res.evaluations[label][kind].summary()))
+    for kind in res.poh_after:
+        print(f"\n{kind}: POH accuracy, stage 1 model")
+        print(format_summary(res.poh_before[kind].summary()))
+        print(f"{kind}: POH accuracy after stage 2a")
+        print(format_summary(res.poh_after[kind].summary()))
+    print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims")
+    if not a.no_write:
+        files = write_product(root, a.aircraft, res.factors, "trims", res.summary())
+        print("written: " + ", ".join(str(f) for f in files))
+    print(f"report: {write_trims_report(res, Path(a.report_dir) / a.aircraft)}")
+    return res.factors
+
+
 def cmd_calibrate(a) -> int:
+    from .build import load_aircraft_geometry
     root = Path(a.root)
     say = _progress(a.quiet)
-    if a.stage == "steady":
-        from .build import read_calibration, AircraftPaths
-        from .report import write_steady_report
-        from .workflow import run_steady, write_product
-        start = read_calibration(AircraftPaths(root, a.aircraft)) if a.start == "current" else None
-        res = run_steady(root, a.aircraft, start=start, progress=say)
-        print(res.fit.report())
-        print(res.fuel_flow.report())
-        from .evaluate import format_summary
-        for kind in res.calibrated:
-            print(f"\n{kind}: baseline")
-            print(format_summary(res.baseline[kind].summary()))
-            print(f"{kind}: calibrated")
-            print(format_summary(res.calibrated[kind].summary()))
-            if res.thesis.get(kind):
-                print(f"{kind}: thesis model (same points)")
-                print(format_summary(res.thesis[kind]))
-        print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims")
-        if not a.no_write:
-            files = write_product(root, a.aircraft, res.factors, "steady", res.summary())
-            print("written: " + ", ".join(str(f) for f in files))
-        report = write_steady_report(res, root, Path(a.report_dir) / a.aircraft)
-        print(f"report: {report}")
-        return 0
-    if a.stage == "trims":
-        from .flighttest_stage import run_trims_cli
-        return run_trims_cli(a, say)
-    raise CalibError(f"unknown stage {a.stage}")
+    factors = None
+    if a.stage in ("steady", "all"):
+        factors = _calibrate_steady(a, root, say)
+    if a.stage in ("trims", "all"):
+        if "flight_test" not in load_aircraft_geometry(root, a.aircraft).data_files:
+            if a.stage == "trims":
+                raise CalibError(f"aircraft/{a.aircraft}/geometry.toml names no flight_test data ([data] table)")
+            print(f"\n{a.aircraft}: no flight-test data, stage 2a skipped")
+            return 0
+        print()
+        _calibrate_trims(a, root, say, start=factors)
+    return 0
 
 
 def cmd_evaluate(a) -> int:
     from .data import load_dataset
     from .evaluate import evaluate_dataset
     from .fdm import Simulator
-    ds = load_dataset(a.data)
     with Simulator(Path(a.root), a.aircraft, baseline=a.baseline) as sim:
+        ds = load_dataset(a.data, control_travel=sim.geometry.control_travel_file)
         if ds.kind == "g1000":
             from .logs import evaluate_log
             ev = evaluate_log(sim, ds.path, model_kind="baseline" if a.baseline else "calibrated")
@@ -115,10 +151,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     c = sub.add_parser("calibrate", help="run a calibration stage and write the calibrated aircraft")
     c.add_argument("aircraft")
-    c.add_argument("--stage", required=True, choices=("steady", "trims"),
-                   help="steady: POH climb/cruise (stage 1); trims: flight-test trims (stage 2a)")
+    c.add_argument("--stage", required=True, choices=("steady", "trims", "all"),
+                   help="steady: POH climb/cruise (stage 1, resets later stages); trims: flight-test trims "
+                        "(stage 2a, from the aircraft's stage-1 factors); all: both in order")
     c.add_argument("--start", choices=("neutral", "current"), default="neutral",
                    help="start from neutral factors (default, reproducible) or the current calibration")
+    c.add_argument("--skip", action="append", metavar="STEP",
+                   help="trims stage: leave out a step (pitch, control, pfactor, flaps); repeatable")
     c.add_argument("--no-write", action="store_true", help="do not write the aircraft files")
     c.add_argument("--report-dir", default="reports", help="where reports go (default reports/)")
     c.set_defaults(func=cmd_calibrate)
@@ -142,7 +181,13 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"warning: {message}", file=sys.stderr)
+
+
 def main(argv=None) -> int:
+    import warnings
+    warnings.showwarning = _show_warning
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)

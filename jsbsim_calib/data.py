@@ -177,8 +177,12 @@ def validate_frame(raw: pd.DataFrame, schema: Schema, path: Path) -> pd.DataFram
     return out
 
 
-def load_dataset(path: str | Path, kind: str | None = None) -> Dataset:
-    """Load and validate a data file (POH climb/cruise; other kinds are added by their modules)."""
+def load_dataset(path: str | Path, kind: str | None = None, *, control_travel: str | Path | None = None) -> Dataset:
+    """Load and validate a data file of any kind.
+
+    ``control_travel``: the aircraft's control-travel table; with it, flight-test snapshots
+    are also checked for surfaces that disagree with their cockpit controls.
+    """
     path = Path(path)
     if path.is_file():
         with open(path, "rb") as fh:
@@ -195,7 +199,7 @@ def load_dataset(path: str | Path, kind: str | None = None) -> Dataset:
                                        "(ktas, rpm/pct_power/gph, ...), flight-test snapshot or flap-climb file")])
     if kind in ("snapshot", "flap_climb"):
         from .flighttest import load_flight_test
-        return load_flight_test(path, raw, kind)
+        return load_flight_test(path, raw, kind, control_travel)
     schema = SCHEMAS[kind]
     frame = validate_frame(raw, schema, path)
     ref = raw[[c for c in raw.columns if c.strip().startswith("thesis_model_")]].copy()

@@ -22,6 +22,7 @@ from typing import Callable, Sequence
 import numpy as np
 import pandas as pd
 
+from . import flighttest
 from .data import METRICS, Dataset
 from .fdm import Condition, Simulator, TrimResult
 from .geometry import AircraftGeometry
@@ -62,11 +63,16 @@ def poh_value(metric: str, t: TrimResult) -> float:
 class Kind:
     conditions: Callable[[Dataset, AircraftGeometry], list[Condition]]
     value: Callable[[str, TrimResult], float]
+    shown: tuple[str, ...] | None = None          # input columns of the printed table (None: all)
 
 
 KINDS: dict[str, Kind] = {
     "poh_climb": Kind(poh_climb_conditions, poh_value),
     "poh_cruise": Kind(poh_cruise_conditions, poh_value),
+    "snapshot": Kind(flighttest.snapshot_conditions, flighttest.snapshot_value,
+                     ("table", "flaps_deg", "pressure_alt_ft", "ktas", "vs_fpm", "roll_deg")),
+    "flap_climb": Kind(flighttest.flap_climb_conditions, flighttest.flap_climb_value,
+                       ("weight_lb", "flaps_deg", "pressure_alt_ft", "ktas")),
 }
 
 
@@ -137,8 +143,12 @@ class Evaluation:
             if p.reason:
                 d["reason"] = p.reason
             pts.append(d)
-        return {"aircraft": self.aircraft, "model": self.model_kind, "data": str(self.dataset.path),
-                "kind": self.dataset.kind, "points": pts, "summary": self.summary()}
+        out = {"aircraft": self.aircraft, "model": self.model_kind, "data": str(self.dataset.path),
+               "kind": self.dataset.kind, "points": pts, "summary": self.summary()}
+        quirks = self.dataset.extra.get("quirks")
+        if quirks:
+            out["excluded"] = [{"row": q.row, "line": q.line, "reason": q.reason} for q in quirks]
+        return out
 
     def write_json(self, path: Path) -> None:
         Path(path).write_text(json.dumps(self.to_json(), indent=2) + "\n")
@@ -157,12 +167,15 @@ class Evaluation:
     def table(self) -> str:
         """Plain-text table of every point and the summary."""
         lines = []
-        inputs = [c for c in self.dataset.frame.columns if c not in self.metrics and c != "flaps_deg"]
+        shown = KINDS[self.dataset.kind].shown if self.dataset.kind in KINDS else None
+        inputs = list(shown) if shown else [c for c in self.dataset.frame.columns
+                                            if c not in self.metrics and c != "flaps_deg"]
         head = " ".join(f"{c:>14}" for c in inputs) + "".join(f" {m + ' data':>14} {'model':>9} {'error':>8}"
                                                               for m in self.metrics) + "  trim"
         lines.append(head)
         for p in self.points:
-            s = " ".join(f"{p.inputs.get(c, float('nan')):14.1f}" for c in inputs)
+            s = " ".join(f"{p.inputs.get(c, float('nan')):14.1f}" if not isinstance(p.inputs.get(c), str)
+                         else f"{p.inputs[c]:>14}" for c in inputs)
             for m in self.metrics:
                 mark = "" if p.within.get(m, False) else "*"
                 s += f" {p.inputs.get(m, float('nan')):14.2f} {p.model.get(m, float('nan')):9.2f} {p.error.get(m, float('nan')):+8.2f}{mark}"
@@ -171,6 +184,8 @@ class Evaluation:
         lines.append("")
         lines.append(format_summary(self.summary()))
         lines.append("(* outside tolerance)")
+        for q in self.dataset.extra.get("quirks", []):
+            lines.append(f"left out: {q}")
         return "\n".join(lines)
 
 

@@ -101,13 +101,21 @@ FACTORS: tuple[Factor, ...] = (
        "scales rudder effectiveness: > 1 smaller trim rudder"),
     _f("K_dr_offset", 0.0, -5.0, 5.0, "m2/s", "control", "rudder circulation (eq. 3.36)",
        "adds fin circulation as a positive (trailing edge left) rudder does: nose-left moment"),
-    _f("K_PF", 0.0, 0.0, 0.5, "-", "pfactor", "yawing moment N = -K_PF T (D/2) sin(alpha) (eq. 3.38)",
+    # The method bounds K_PF to [0, 0.5] for its form applied on every strip; applied once as
+    # eq. 3.38 the C172 flight-test climbs need about 5 (the term also stands for the
+    # slipstream swirl on the fin, which the strip model lacks, and trades with K_dr_slope):
+    # bound widened to 5, measured, see README.
+    _f("K_PF", 0.0, 0.0, 5.0, "-", "pfactor", "yawing moment N = -K_PF T (D/2) sin(alpha) (eq. 3.38)",
        "P-factor: + nose-left yaw growing with thrust and alpha (right rudder in climbs)"),
     # --- flaps (Table 3.6, eq. 3.42-3.45)
     _f("K_dcd0_flaps", 0.0, -2.0, 2.0, "-", "flaps", "flap strips: profile drag per flap degree (eq. 3.42)",
        "adds K times the per-degree flap profile-drag estimate: + more flaps-down drag"),
     _f("K_dcm_flaps", 0.0, -3.0, 3.0, "-", "flaps", "flap strips: section moment per flap degree (eq. 3.44)",
        "adds K times the per-degree flap moment estimate: + more nose-down with flaps"),
+    # not in the method: its flap step cannot move the flaps-down trim attitude, which is set
+    # by the flap lift increment (see the README)
+    _f("K_dcl_flaps", 1.0, 0.5, 1.5, "-", "flaps", "flap strips: lift increment of the flap (strip theory)",
+       "scales the flap lift increment: < 1 less lift from the flaps, higher flaps-down pitch attitude"),
     # --- damping (Table 3.7, eq. 3.48-3.56)
     _f("K_Clp", 0.0, -0.02, 0.02, "-", "damping", "rolling moment -K p b/(2V) qbar S b (eq. 3.48)",
        "extra roll damping: + more damping"),

@@ -471,26 +471,46 @@ class Simulator:
             J[:, i] = (residual(xi) - fx) / h
         return J
 
-    def trim_level(self, cond: Condition, key=None, speed_tolerance_kt: float = 3.0) -> TrimResult:
-        """Level point; when it needs more than full throttle, level flight at full throttle
-        instead (speed free), accepted if the speed reached is within ``speed_tolerance_kt``
-        of the data (Part 60 airspeed tolerance) and reported with the shortfall."""
+    CLIMB_VS_FPM = 50.0        # [ft/min] above this a point past the throttle stop is a climb (see trim_at_stop)
+
+    def trim_at_stop(self, cond: Condition, key=None) -> TrimResult:
+        """A level or climbing point flown at full throttle instead: a climb
+        (``vs_fpm`` > :attr:`CLIMB_VS_FPM`) keeps its speed and lets the rate of climb go
+        free; level flight keeps the flight path and lets the speed go free."""
+        if cond.vs_fpm > self.CLIMB_VS_FPM:
+            c = replace(cond, mode="full_throttle", throttle=1.0)
+        else:
+            c = replace(cond, mode="level_full_throttle", throttle=1.0)
+        return self.trim(c, None if key is None else (key, "full throttle"))
+
+    def trim_level(self, cond: Condition, key=None, speed_tolerance_kt: float = 3.0,
+                   vs_tolerance_fpm: float = 100.0) -> TrimResult:
+        """Level (or steadily climbing) point; when it needs more than full throttle, flown at
+        full throttle instead (:meth:`trim_at_stop`), accepted if the speed reached is within
+        ``speed_tolerance_kt`` of the data (Part 60 airspeed tolerance) or, for a climb, the
+        rate of climb within ``vs_tolerance_fpm`` (Part 60 climb tolerance); reported with
+        the shortfall."""
         t = self.trim(cond, key)
         if t.trimmed or not t.reason.startswith("needs more than full throttle") or ";" in t.reason:
             return t
-        ft = self.trim(replace(cond, mode="level_full_throttle", throttle=1.0),
-                       None if key is None else (key, "full throttle"))
+        ft = self.trim_at_stop(cond, key)
         if not ft.trimmed:
             return t
-        want = cond.ktas if cond.ktas is not None else t.ktas
-        short = want - ft.ktas
-        ft.extra["ktas_shortfall"] = short
         ft.condition = cond
-        if short > speed_tolerance_kt:
-            ft.trimmed = False
-            ft.reason = f"full throttle reaches {ft.ktas:.1f} kt, {short:.1f} kt short"
+        if cond.vs_fpm > self.CLIMB_VS_FPM:
+            short = cond.vs_fpm - ft.roc_fpm
+            ft.extra["vs_shortfall_fpm"] = short
+            ok, what = short <= vs_tolerance_fpm, f"{ft.roc_fpm:.0f} ft/min, {short:.0f} ft/min"
         else:
-            ft.reason = f"at full throttle: {ft.ktas:.1f} kt, {short:.1f} kt short of the data speed"
+            want = cond.ktas if cond.ktas is not None else t.ktas
+            short = want - ft.ktas
+            ft.extra["ktas_shortfall"] = short
+            ok, what = short <= speed_tolerance_kt, f"{ft.ktas:.1f} kt, {short:.1f} kt"
+        if not ok:
+            ft.trimmed = False
+            ft.reason = f"full throttle reaches {what} short"
+        else:
+            ft.reason = f"at full throttle: {what} short of the data"
         return ft
 
     def _flap_max_deg(self) -> float:

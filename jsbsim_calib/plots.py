@@ -113,6 +113,45 @@ def parity(evals: Mapping[str, object], metric: str, ax=None) -> Figure:
     return fig
 
 
+def parity_panels(evals: Mapping[str, object], metric: str) -> Figure:
+    """One parity panel per model state (e.g. baseline, after each step), same axes, with
+    the tolerance band and the share within it in each title."""
+    n = len(evals)
+    fig = Figure(figsize=(2.6 * n, 2.9), dpi=110)
+    pairs = {}
+    for label, ev in evals.items():
+        x = np.array([p.inputs.get(metric, np.nan) for p in ev.points], float)
+        y = np.array([p.model.get(metric, np.nan) for p in ev.points], float)
+        pairs[label] = (x, y)
+    allv = np.concatenate([np.concatenate(v) for v in pairs.values()]) if pairs else np.array([])
+    allv = allv[np.isfinite(allv)]
+    if not allv.size:
+        return fig
+    lo, hi = allv.min(), allv.max()
+    pad = 0.08 * (hi - lo + 1e-9)
+    xs = np.linspace(lo - pad, hi + pad, 50)
+    m = METRICS[metric]
+    tol = np.array([m.tol_for(v) for v in xs])
+    for k, (label, (x, y)) in enumerate(pairs.items()):
+        ax = fig.add_subplot(1, n, k + 1)
+        ax.fill_between(xs, xs - tol, xs + tol, color="tab:green", alpha=0.15)
+        ax.plot(xs, xs, "k-", lw=0.7)
+        ok = np.isfinite(x) & np.isfinite(y)
+        inside = np.abs(y - x) <= np.array([m.tol_for(v) for v in x]) + 1e-9
+        ax.plot(x[ok & inside], y[ok & inside], "o", ms=3.5, color="tab:blue")
+        ax.plot(x[ok & ~inside], y[ok & ~inside], "o", ms=3.5, color="tab:red")
+        share = 100.0 * np.sum(ok & inside) / max(1, len(x))
+        ax.set_title(f"{label}: {share:.0f} % in", fontsize=8)
+        ax.set_xlim(xs[0], xs[-1])
+        ax.set_ylim(xs[0], xs[-1])
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+        if k == 0:
+            ax.set_ylabel(f"model {metric}", fontsize=8)
+        ax.set_xlabel(f"data {metric}", fontsize=8)
+    return fig
+
+
 def aero_polars(curves: Mapping[str, Mapping[str, np.ndarray]], ax=None) -> Figure:
     """CL vs alpha and CL vs CD for each model (curves: label -> {alpha_deg, CL, CD})."""
     if ax is None:

@@ -20,7 +20,7 @@ from lxml import etree
 
 from . import __version__, xmlmodel
 from .build import AircraftPaths, load_aircraft_geometry, propeller_tree, read_bem_csv, read_calibration
-from .calibrate import FitResult, default_subset, steady_stage
+from .calibrate import TRIM_STEPS, FitResult, TrimStep, default_subset, steady_stage, trims_stage
 from .data import METRICS, Dataset, load_dataset
 from .errors import ModelError
 from .evaluate import Evaluation, PointResult, evaluate_dataset, summarize
@@ -77,11 +77,12 @@ def thesis_summary(ds: Dataset) -> dict:
 
 
 def aircraft_data(root: Path, name: str, kinds=("poh_climb", "poh_cruise")) -> dict[str, Dataset]:
+    """The aircraft's reference data named in its geometry file ([data] table), by kind."""
     geom = load_aircraft_geometry(root, name)
     missing = [k for k in kinds if k not in geom.data_files]
     if missing:
         raise ModelError(f"aircraft/{name}/geometry.toml names no data for {', '.join(missing)} ([data] table)")
-    return {k: load_dataset(geom.data_files[k]) for k in kinds}
+    return {k: load_dataset(geom.data_files[k], control_travel=geom.control_travel_file) for k in kinds}
 
 
 def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
@@ -109,7 +110,8 @@ def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
 
 def write_product(root: Path | str, name: str, factors: FactorSet, stage: str, record: dict) -> list[Path]:
     """Write calibrated factors into the aircraft: XML property values, baked propeller
-    tables and the calibration record. Returns the files written."""
+    tables and the calibration record. Returns the files written. A steady-stage result
+    starts a new record (the flight-test stage builds on it and must be rerun)."""
     paths = AircraftPaths(Path(root), name)
     # the record stores 10 decimals; write exactly those values so 'generate' reproduces the files
     factors = FactorSet({k: round(v, 10) for k, v in factors.items()})
@@ -123,6 +125,8 @@ def write_product(root: Path | str, name: str, factors: FactorSet, stage: str, r
     rec["aircraft"] = name
     rec["jsbsim_calib"] = __version__
     rec["factors"] = {k: round(v, 10) for k, v in factors.items()}
+    if stage == "steady":
+        rec["stages"] = {}
     rec.setdefault("stages", {})[stage] = record
     paths.calibration.write_text(json.dumps(rec, indent=2) + "\n")
     return [paths.aircraft_xml, paths.propeller_xml, paths.calibration]
@@ -161,3 +165,94 @@ def propeller_tables_for(root: Path | str, name: str, factors: FactorSet):
     paths = AircraftPaths(Path(root), name)
     bem = read_bem_csv(paths.propeller_bem)
     return apply_factors(bem, PropellerFactors(**factors.propeller()))
+
+
+# --------------------------------------------------------------------------- stage 2a
+FLIGHT_TEST_KINDS = {"snapshot": "flight_test", "flap_climb": "flap_climb"}   # dataset kind -> [data] key
+
+
+@dataclass
+class TrimsCalibration:
+    """The flight-test trim stage: fits per step and the evaluations between them.
+
+    ``evaluations[label][kind]``: labels ``baseline`` (all factors neutral), ``steady``
+    (stage 1 only, where stage 2a starts), then one per step; kinds ``snapshot`` and
+    ``flap_climb``. ``poh_before``/``poh_after``: the POH evaluations before and after."""
+
+    aircraft: str
+    steps: list[FitResult]
+    evaluations: dict[str, dict[str, Evaluation]]
+    poh_before: dict[str, Evaluation]
+    poh_after: dict[str, Evaluation]
+    thesis: dict[str, dict]
+    factors: FactorSet
+    skipped: list[str]
+    wall_time_s: float
+    trims: int
+
+    @property
+    def data(self) -> dict[str, Dataset]:
+        return {k: e.dataset for k, e in self.evaluations["steady"].items()}
+
+    def summary(self) -> dict:
+        return {
+            "aircraft": self.aircraft, "wall_time_s": round(self.wall_time_s, 2), "trims": self.trims,
+            "steps": [r.summary() for r in self.steps], "skipped_steps": self.skipped,
+            "flight_test": {label: {k: e.summary() for k, e in ev.items()} for label, ev in self.evaluations.items()},
+            "thesis": self.thesis,
+            "poh_before": {k: e.summary() for k, e in self.poh_before.items()},
+            "poh_after": {k: e.summary() for k, e in self.poh_after.items()},
+            "left_out": [str(q) for ds in self.data.values() for q in ds.extra.get("quirks", [])],
+        }
+
+
+def steady_factors(factors: FactorSet) -> FactorSet:
+    """Stage-1 factors kept, every later factor neutral: where stage 2a starts."""
+    from .factors import REGISTRY
+    return FactorSet({k: v for k, v in factors.items() if REGISTRY[k].stage == "steady"})
+
+
+def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps: tuple[TrimStep, ...] = TRIM_STEPS,
+              start: FactorSet | None = None, progress: Callable[[str], None] | None = None) -> TrimsCalibration:
+    """Stage 2a on the aircraft's flight-test trims, from its stage-1 factors.
+
+    ``skip``: names of steps left out (e.g. ``("pfactor",)``); ``start``: factors to start
+    from (default: the aircraft file's stage-1 factors, later ones neutral)."""
+    root = Path(root)
+    t0 = time.perf_counter()
+    say = progress or (lambda s: None)
+    geom = load_aircraft_geometry(root, name)
+    keys = [k for k in FLIGHT_TEST_KINDS.values() if k in geom.data_files]
+    if "flight_test" not in keys:
+        raise ModelError(f"aircraft/{name}/geometry.toml names no flight_test data ([data] table)")
+    data = aircraft_data(root, name, tuple(keys))
+    ft = {ds.kind: ds for ds in data.values()}
+    poh = aircraft_data(root, name)
+    sim = Simulator(root, name)
+    start = steady_factors(sim.factors) if start is None else start
+    unknown = [s for s in skip if s not in {st.name for st in steps}]
+    if unknown:
+        raise ValueError(f"unknown step(s) {', '.join(unknown)}; steps: {', '.join(st.name for st in steps)}")
+    evaluations: dict[str, dict[str, Evaluation]] = {}
+
+    def evaluate(label: str, model_kind: str = "calibrated") -> None:
+        evaluations[label] = {k: evaluate_dataset(sim, ds, model_kind=model_kind) for k, ds in ft.items()}
+
+    sim.set_factors(FactorSet())
+    evaluate("baseline", "baseline")
+    sim.set_factors(start)
+    evaluate("steady")
+    say(f"stage 1 model: trimming {sum(len(d) for d in poh.values())} POH points")
+    poh_before = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
+    run = tuple(st for st in steps if st.name not in skip)
+    results = trims_stage(sim, {**ft, **poh}, start=start, steps=run, progress=say,
+                          after_step=lambda st, res: evaluate(st.name))
+    final = results[-1].final if results else start
+    sim.set_factors(final)
+    say(f"stage 2a model: trimming {sum(len(d) for d in poh.values())} POH points")
+    poh_after = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
+    trims = sim.trims
+    sim.close()
+    return TrimsCalibration(name, results, evaluations, poh_before, poh_after,
+                            {k: thesis_summary(ds) for k, ds in ft.items()}, final, list(skip),
+                            time.perf_counter() - t0, trims)

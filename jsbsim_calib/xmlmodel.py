@@ -371,8 +371,9 @@ def _aerodynamics(root, geom: AircraftGeometry, m: AeroModel) -> None:
     function(ae, "aero/body/re-factor", "profile-drag scale (Re/Re_cruise)^-0.2 of tails and fuselage",
              re_factor(V(m.const("cruise_Re_per_ft"))))
     # ---- wing
-    function(ae, "aero/wing/CL", "wing lift: K_cl_slope (CL_w(alpha, shift) + flaps) + K_cl_offset S_w/S (eq. 3.6)",
-             sum_(product(K("K_cl_slope"), sum_(T(m, "wing_CL"), T(m, "flap_dCL"))),
+    function(ae, "aero/wing/CL", "wing lift: K_cl_slope (CL_w(alpha, shift) + K_dcl_flaps flaps) + K_cl_offset S_w/S "
+                                 "(eq. 3.6)",
+             sum_(product(K("K_cl_slope"), sum_(T(m, "wing_CL"), product(K("K_dcl_flaps"), T(m, "flap_dCL")))),
                   product(K("K_cl_offset"), V(m.const("wing_area_ratio")))))
     function(ae, "aero/wing/CD0", "wing profile drag: K_cd0_slope CD0_w Re-factor + K_cd0_offset S_profile/S + flap "
                                   "increment + K_dcd0_flaps (dCD0/dflap) flap (eq. 3.7, 3.42)",

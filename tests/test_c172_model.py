@@ -446,6 +446,14 @@ def _k_dcm_flaps(sim):
     assert c1.elevator_deg == pytest.approx(c0.elevator_deg, abs=1e-9)
 
 
+@check("K_dcl_flaps")
+def _k_dcl_flaps(sim):
+    f0, f1 = effect(sim, FLAPS20, {"K_dcl_flaps": 0.8})
+    assert f1.theta_deg > f0.theta_deg + 0.3           # less flap lift: higher flaps-down attitude
+    c0, c1 = effect(sim, CRUISE, {"K_dcl_flaps": 0.8})
+    assert c1.theta_deg == pytest.approx(c0.theta_deg, abs=1e-9)
+
+
 # damping
 def _damping(sim, name: str, attr: str):
     sim.set_factors(FactorSet())
