@@ -60,13 +60,20 @@ class AircraftPaths:
     def propeller_bem(self) -> Path:
         return self.folder / "propeller_bem.csv"
 
+    def _referenced(self, which: str) -> str | None:
+        """Engine/propeller file named in an existing aircraft file (a derived aircraft such
+        as a close-loop result shares its parent's engine files)."""
+        if self.aircraft_xml.is_file():
+            return xmlmodel.propulsion_files(self.aircraft_xml).get(which)
+        return None
+
     @property
     def engine_file(self) -> str:
-        return f"{self.name}_engine"
+        return self._referenced("engine") or f"{self.name}_engine"
 
     @property
     def propeller_file(self) -> str:
-        return f"{self.name}_propeller"
+        return self._referenced("thruster") or f"{self.name}_propeller"
 
     @property
     def engine_xml(self) -> Path:

@@ -56,7 +56,7 @@ class FitResult:
     notes: list[str] = field(default_factory=list)
 
     def at_boundary(self, name: str, tol: float = 1e-3) -> str:
-        f = REGISTRY[name]
+        f = self.final.factor(name)
         v = self.final[name]
         span = f.upper - f.lower
         if v <= f.lower + tol * span:
@@ -76,7 +76,7 @@ class FitResult:
                  f"    wall time          = {self.wall_time_s:.1f} s",
                  "[[Factors]]"]
         for n in self.names:
-            f = REGISTRY[n]
+            f = self.final.factor(n)
             se = self.stderr.get(n)
             se_s = f" +/- {se:.3g}" if se is not None and math.isfinite(se) else " +/- (n/a)"
             flag = self.at_boundary(n)
@@ -100,13 +100,13 @@ class FitResult:
             "njev": self.njev, "trims": self.trims, "cost_initial": self.cost_initial, "cost_final": self.cost_final,
             "wall_time_s": round(self.wall_time_s, 3),
             "factors": {n: {"initial": self.initial[n], "final": self.final[n], "stderr": self.stderr.get(n),
-                            "lower": REGISTRY[n].lower, "upper": REGISTRY[n].upper,
+                            "lower": self.final.factor(n).lower, "upper": self.final.factor(n).upper,
                             "at_boundary": self.at_boundary(n) or None} for n in self.names},
             "notes": self.notes,
         }
 
 
-def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray) -> tuple[dict, dict]:
+def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: FactorSet) -> tuple[dict, dict]:
     """Standard errors of the factors from the Jacobian at the solution, with the
     covariance scaled by the reduced chi-square of the residuals (as lmfit does)."""
     out: dict[str, float | None] = {n: None for n in names}
@@ -122,7 +122,7 @@ def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray) -> tuple[d
     cov = cov * float(residuals @ residuals) / dof
     d = np.sqrt(np.clip(np.diag(cov), 0, None))
     for i, n in enumerate(names):
-        f = REGISTRY[n]
+        f = space.factor(n)
         out[n] = float(d[i] * 0.5 * (f.upper - f.lower))        # back from normalized units
     for i in range(len(names)):
         for j in range(i + 1, len(names)):
@@ -150,7 +150,7 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     bad = [n for n, x in zip(names, x0) if not -1.0 <= x <= 1.0]
     if bad:
         raise ValueError(f"start values outside the bounds of {', '.join(bad)}")
-    x_neutral = (prior_center or FactorSet()).vector(names)
+    x_neutral = (prior_center or FactorSet(extra=start.extra)).vector(names)
     labels: list[str] = []
     history: list[dict] = []
     best = {"cost": math.inf, "x": x0}
@@ -202,7 +202,7 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     r_final, _ = residuals(final)             # leaves the simulator at the final factors
     if prior:
         r_final = np.concatenate([r_final, prior * (final.vector(names) - x_neutral)])
-    se, corr = _stderr(res.jac, names, r_final)
+    se, corr = _stderr(res.jac, names, r_final, final)
     return FitResult(stage, names, start, final, cost0, 0.5 * float(r_final @ r_final), res.nfev,
                      njev[0], int(res.status), str(res.message), time.perf_counter() - t0,
                      sim.trims - trims0, se, corr, history, list(labels), r_final)

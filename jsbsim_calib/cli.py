@@ -106,20 +106,61 @@ def cmd_calibrate(a) -> int:
 
 
 def cmd_evaluate(a) -> int:
-    from .data import load_dataset
     from .evaluate import evaluate_dataset
     from .fdm import Simulator
+    from .workflow import load_data_for
     with Simulator(Path(a.root), a.aircraft, baseline=a.baseline) as sim:
-        ds = load_dataset(a.data, control_travel=sim.geometry.control_travel_file)
-        if ds.kind == "g1000":
-            from .logs import evaluate_log
-            ev = evaluate_log(sim, ds.path, model_kind="baseline" if a.baseline else "calibrated")
-        else:
-            ev = evaluate_dataset(sim, ds, model_kind="baseline" if a.baseline else "calibrated")
+        ds = load_data_for(sim, a.data)
+        ev = evaluate_dataset(sim, ds, model_kind="baseline" if a.baseline else "calibrated",
+                              progress=None)
     print(ev.table())
+    if ds.kind == "g1000":
+        from .logs import write_log_report
+        png, md = write_log_report(ev, Path(a.report_dir) / a.aircraft)
+        print(f"{ds.extra['weight_note']}\nplot: {png}\nreport: {md}")
     if a.json:
         ev.write_json(Path(a.json))
         print(f"json: {a.json}")
+    return 0
+
+
+def cmd_synth(a) -> int:
+    from .fdm import Simulator
+    from .synth import synthesize, write_csv
+    with Simulator.from_dir(Path(a.truth), Path(a.root)) as truth:
+        rows, skipped = synthesize(truth, n=a.points, seed=a.seed, noise=a.noise, progress=_progress(a.quiet))
+    write_csv(rows, Path(a.out))
+    for s in skipped:
+        print(f"left out (the truth does not trim): {s}", file=sys.stderr)
+    print(f"{len(rows)} snapshots of {Path(a.truth).name} (seed {a.seed}, noise x{a.noise:g}) written to {a.out}")
+    return 0
+
+
+def cmd_close_loop(a) -> int:
+    from .closeloop import write_aircraft
+    from .evaluate import format_summary
+    from .report import write_close_loop_report
+    from .workflow import run_close_loop
+    root = Path(a.root)
+    res = run_close_loop(root, a.aircraft, Path(a.data), skip_steps=tuple(a.skip_step or ()),
+                         progress=_progress(a.quiet))
+    s = res.summaries("all")
+    print("before:")
+    print(format_summary(s["before"]))
+    print("after:")
+    print(format_summary(s["after"]))
+    print(f"added: {', '.join(res.added) or 'nothing'}")
+    for u in res.unexplained():
+        print(f"unexplained: {u['metric']} correlates with {', '.join(u['correlates_with'][:3]) or 'no single state'}")
+    written = None
+    if not a.no_write:
+        written = write_aircraft(res, root, a.aircraft if a.in_place else (a.out or f"{a.aircraft}_loop"))
+        print(f"aircraft: {written}")
+    print(f"report: {write_close_loop_report(res, Path(a.report_dir) / a.aircraft, written)}")
+    if a.json:
+        Path(a.json).write_text(json.dumps(res.to_json(), indent=2, default=float) + "\n")
+        print(f"json: {a.json}")
+    res.sim.close()
     return 0
 
 
@@ -167,7 +208,28 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--data", required=True)
     e.add_argument("--baseline", action="store_true", help="evaluate the uncalibrated model")
     e.add_argument("--json", help="write the results as JSON")
+    e.add_argument("--report-dir", default="reports", help="where a G1000 log's plot and table go")
     e.set_defaults(func=cmd_evaluate)
+
+    y = sub.add_parser("synth", help="synthetic flight-test snapshots flown by a truth aircraft folder")
+    y.add_argument("--truth", required=True, help="aircraft folder (its XML flies as it stands)")
+    y.add_argument("--out", required=True, help="snapshot CSV to write")
+    y.add_argument("--seed", type=int, default=0)
+    y.add_argument("--points", type=int, default=48, help="number of trims of the campaign (default 48)")
+    y.add_argument("--noise", type=float, default=1.0, help="scale of the measurement noise (0: none)")
+    y.set_defaults(func=cmd_synth)
+
+    o = sub.add_parser("close-loop", help="find structured residuals, add the missing effect, refit, report")
+    o.add_argument("aircraft")
+    o.add_argument("--data", required=True, help="flight-test snapshots, flap climbs or POH data")
+    o.add_argument("--json", help="write the result as JSON")
+    o.add_argument("--skip-step", action="append", metavar="STEP",
+                   help="first rerun stage 2a without this step (e.g. pfactor); repeatable")
+    o.add_argument("--out", help="name of the aircraft folder written (default AIRCRAFT_loop)")
+    o.add_argument("--in-place", action="store_true", help="write the effects into the aircraft itself")
+    o.add_argument("--no-write", action="store_true", help="write no aircraft")
+    o.add_argument("--report-dir", default="reports")
+    o.set_defaults(func=cmd_close_loop)
 
     k = sub.add_parser("check", help="plausibility: lift slope, stall speed, stability and damping derivatives")
     k.add_argument("aircraft")

@@ -177,19 +177,24 @@ def validate_frame(raw: pd.DataFrame, schema: Schema, path: Path) -> pd.DataFram
     return out
 
 
-def load_dataset(path: str | Path, kind: str | None = None, *, control_travel: str | Path | None = None) -> Dataset:
+def load_dataset(path: str | Path, kind: str | None = None, *, control_travel: str | Path | None = None,
+                 geometry=None) -> Dataset:
     """Load and validate a data file of any kind.
 
     ``control_travel``: the aircraft's control-travel table; with it, flight-test snapshots
-    are also checked for surfaces that disagree with their cockpit controls.
+    are also checked for surfaces that disagree with their cockpit controls. ``geometry``:
+    the aircraft, needed for a G1000 log (its empty weight enters the weight estimate).
     """
     path = Path(path)
     if path.is_file():
         with open(path, "rb") as fh:
             head = fh.read(64)
         if head.lstrip().startswith(b"#airframe_info"):
-            from .g1000 import read_g1000  # noqa: F401  (kind detection; loaded by the evaluate layer)
-            return Dataset("g1000", path, pd.DataFrame(), pd.DataFrame(), ("rpm", "roc_fpm", "pitch_deg"))
+            if geometry is None:
+                raise DataError(path, "a G1000 log is evaluated for an aircraft: its empty weight enters the "
+                                      "weight estimate (pass geometry=...)")
+            from .logs import log_dataset
+            return log_dataset(path, geometry)
     raw = read_csv_checked(path)
     cols = {c.strip() for c in raw.columns}
     kind = kind or _kind_of(cols)

@@ -22,7 +22,7 @@ from typing import Callable, Sequence
 import numpy as np
 import pandas as pd
 
-from . import flighttest
+from . import flighttest, logs
 from .data import METRICS, Dataset
 from .fdm import Condition, Simulator, TrimResult
 from .geometry import AircraftGeometry
@@ -73,6 +73,8 @@ KINDS: dict[str, Kind] = {
                      ("table", "flaps_deg", "pressure_alt_ft", "ktas", "vs_fpm", "roll_deg")),
     "flap_climb": Kind(flighttest.flap_climb_conditions, flighttest.flap_climb_value,
                        ("weight_lb", "flaps_deg", "pressure_alt_ft", "ktas")),
+    "g1000": Kind(logs.log_conditions, logs.log_value,
+                  ("segment", "kind", "duration_s", "pressure_alt_ft", "oat_c", "ktas", "vs_fpm", "weight_lb")),
 }
 
 
@@ -145,6 +147,10 @@ class Evaluation:
             pts.append(d)
         out = {"aircraft": self.aircraft, "model": self.model_kind, "data": str(self.dataset.path),
                "kind": self.dataset.kind, "points": pts, "summary": self.summary()}
+        if "table" in self.dataset.extra:
+            out["segments"] = [{k: clean(v) for k, v in r.items()}
+                               for r in self.dataset.extra["table"].to_dict("records")]
+            out["weight_assumption"] = self.dataset.extra.get("weight_note")
         quirks = self.dataset.extra.get("quirks")
         if quirks:
             out["excluded"] = [{"row": q.row, "line": q.line, "reason": q.reason} for q in quirks]

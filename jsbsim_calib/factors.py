@@ -152,13 +152,18 @@ def stage_factors(stage: str) -> tuple[Factor, ...]:
 
 
 class FactorSet(Mapping[str, float]):
-    """Values of all factors (neutral unless given). Out-of-bounds values raise, never clamp."""
+    """Values of all factors (neutral unless given). Out-of-bounds values raise, never clamp.
 
-    def __init__(self, values: Mapping[str, float] | None = None):
-        self._v = neutral_values()
+    ``extra``: more factors beyond the registry (the factors of effects added to an
+    aircraft, :mod:`jsbsim_calib.effects`), with their own bounds and properties."""
+
+    def __init__(self, values: Mapping[str, float] | None = None, extra: Mapping[str, Factor] | None = None):
+        self._extra = dict(extra or {})
+        self._reg = {**REGISTRY, **self._extra} if self._extra else REGISTRY
+        self._v = {**neutral_values(), **{k: f.neutral for k, f in self._extra.items()}}
         bad = []
         for k, v in (values or {}).items():
-            f = REGISTRY.get(k)
+            f = self._reg.get(k)
             if f is None:
                 bad.append(f"unknown factor '{k}'")
                 continue
@@ -170,6 +175,16 @@ class FactorSet(Mapping[str, float]):
         if bad:
             raise FactorError("; ".join(bad))
 
+    @property
+    def extra(self) -> dict[str, Factor]:
+        return dict(self._extra)
+
+    def factor(self, name: str) -> Factor:
+        try:
+            return self._reg[name]
+        except KeyError:
+            raise FactorError(f"unknown factor '{name}'") from None
+
     def __getitem__(self, k: str) -> float:
         return self._v[k]
 
@@ -180,29 +195,31 @@ class FactorSet(Mapping[str, float]):
         return len(self._v)
 
     def replace(self, **changes: float) -> "FactorSet":
-        v = dict(self._v)
-        v.update(changes)
-        return FactorSet(v)
+        return self.updated(changes)
 
     def updated(self, changes: Mapping[str, float]) -> "FactorSet":
         v = dict(self._v)
         v.update(changes)
-        return FactorSet(v)
+        return FactorSet(v, self._extra)
+
+    def with_extra(self, extra: Mapping[str, Factor], values: Mapping[str, float] | None = None) -> "FactorSet":
+        """The same values with more (effect) factors."""
+        return FactorSet({**self._v, **(values or {})}, {**self._extra, **extra})
 
     def vector(self, names: Sequence[str], normalized: bool = True) -> np.ndarray:
-        x = np.array([REGISTRY[n].to_unit(self._v[n]) if normalized else self._v[n] for n in names])
+        x = np.array([self._reg[n].to_unit(self._v[n]) if normalized else self._v[n] for n in names])
         # snap round-off to 0: scipy's trust region starts at |x0|_inf, which must not be 1e-16
         return np.where(np.abs(x) < 1e-12, 0.0, x)
 
     def with_vector(self, names: Sequence[str], x: Iterable[float], normalized: bool = True) -> "FactorSet":
         v = dict(self._v)
         for n, xi in zip(names, x):
-            v[n] = REGISTRY[n].from_unit(float(xi)) if normalized else float(xi)
-        return FactorSet(v)
+            v[n] = self._reg[n].from_unit(float(xi)) if normalized else float(xi)
+        return FactorSet(v, self._extra)
 
     def changed(self) -> dict[str, float]:
         """Factors that differ from neutral."""
-        return {k: v for k, v in self._v.items() if v != REGISTRY[k].neutral}
+        return {k: v for k, v in self._v.items() if v != self._reg[k].neutral}
 
     def propeller(self) -> dict[str, float]:
         return {k: self._v[k] for k in PROPELLER_FACTORS}

@@ -14,6 +14,7 @@ propeller file in the sandbox and reloads the model (a few milliseconds).
 """
 from __future__ import annotations
 
+import copy
 import math
 import shutil
 import tempfile
@@ -134,6 +135,8 @@ OUTPUTS = {
     "map_inhg": "propulsion/engine/map-inhg", "elevator_deg": "fcs/elevator-pos-deg",
     "aileron_deg": "fcs/aileron-pos-deg", "rudder_deg": "fcs/rudder-pos-deg", "qbar_psf": "aero/qbar-psf",
 }
+POSITION_ERROR = "velocities/position-error-kts"   # measured - true airspeed, where an aircraft defines it
+PITCH_INDICATED = "attitude/theta-ind-deg"         # pitch as the attitude instrument shows it, where defined
 ACCELS = ("accelerations/udot-ft_sec2", "accelerations/vdot-ft_sec2", "accelerations/wdot-ft_sec2",
           "accelerations/pdot-rad_sec2", "accelerations/qdot-rad_sec2", "accelerations/rdot-rad_sec2")
 
@@ -161,6 +164,8 @@ class Simulator:
         (self._box / "engine").mkdir()
         (self._box / "systems").mkdir()
         self._tree = etree.parse(str(self.paths.aircraft_xml))
+        self.effect_values: dict[str, float] = {p: v for vals in xmlmodel.effect_values(self._tree).values()
+                                                for p, v in vals.items()}
         shutil.copy(self.paths.engine_xml, self._box / "engine")
         self._box_paths = AircraftPaths(self._box, name)
         self._write_aircraft(self.factors)
@@ -186,8 +191,66 @@ class Simulator:
 
     def _write_aircraft(self, factors: FactorSet) -> None:
         xmlmodel.set_factor_values(self._tree, factors)
-        xmlmodel.add_trim_aid(self._tree, self.geometry.propeller.location_m)
-        xmlmodel.write(self._tree, self._box_paths.aircraft_xml)
+        xmlmodel.set_effect_values(self._tree, self.effect_values)
+        box = copy.deepcopy(self._tree)
+        xmlmodel.add_trim_aid(box, self.geometry.propeller.location_m)
+        xmlmodel.write(box, self._box_paths.aircraft_xml)
+
+    @classmethod
+    def from_dir(cls, aircraft_dir: Path | str, root: Path | str = ".", **kw) -> "Simulator":
+        """An aircraft folder anywhere (``<dir>/<name>.xml``, ``geometry.toml``,
+        ``propeller_bem.csv``): flown as its XML stands. When the folder is not inside a
+        JSBSim root, engines, airfoils and data come from ``root``."""
+        d = Path(aircraft_dir).resolve()
+        if d.parent.name == "aircraft" and (d.parent.parent / "engine").is_dir():
+            return cls(d.parent.parent, d.name, **kw)
+        stage = Path(tempfile.mkdtemp(prefix="jsbsim-calib-root-"))
+        (stage / "aircraft").mkdir()
+        (stage / "aircraft" / d.name).symlink_to(d, target_is_directory=True)
+        for sub in ("engine", "airfoils", "data", "scripts"):
+            if (Path(root).resolve() / sub).exists():
+                (stage / sub).symlink_to(Path(root).resolve() / sub, target_is_directory=True)
+        sim = cls(stage, d.name, **kw)
+        sim._stage = stage
+        return sim
+
+    def clone(self) -> "Simulator":
+        """A second simulator of the aircraft as it stands here (effects and values included)."""
+        other = Simulator(self.root, self.name, factors=self.factors)
+        other._tree = copy.deepcopy(self._tree)
+        other.effect_values = dict(self.effect_values)
+        other._write_aircraft(other.factors)
+        other.fdm = other._load()
+        return other
+
+    # ------------------------------------------------------------------ effects
+    def add_effect(self, effect, values: Mapping[str, float] | None = None) -> None:
+        """Add a library effect (:mod:`jsbsim_calib.effects`) to the loaded aircraft and reload."""
+        from .effects import constants
+        xmlmodel.add_effect(self._tree, effect.spec, constants(self.geometry), values)
+        for f in effect.factors:
+            self.effect_values[f.property] = float((values or {}).get(f.property, f.neutral))
+        self._write_aircraft(self.factors)
+        self.fdm = self._load()
+        self._cache.clear()
+
+    def set_effect_values(self, values: Mapping[str, float]) -> None:
+        """Set effect factor properties (by property name)."""
+        for k, v in values.items():
+            if k not in self.effect_values:
+                raise ModelError(f"the aircraft has no effect factor {k}")
+            self.effect_values[k] = float(v)
+            self.fdm[k] = float(v)
+
+    @property
+    def effects(self) -> list[str]:
+        return list(xmlmodel.effect_values(self._tree))
+
+    def aircraft_tree(self):
+        """The aircraft as it flies here (factor and effect values included, no sandbox aids)."""
+        xmlmodel.set_factor_values(self._tree, self.factors)
+        xmlmodel.set_effect_values(self._tree, self.effect_values)
+        return copy.deepcopy(self._tree)
 
     def _write_propeller(self, factors: FactorSet) -> None:
         tree = propeller_tree(self.geometry, self.bem, factors, self.paths)
@@ -210,11 +273,21 @@ class Simulator:
         for name, f in REGISTRY.items():
             if not f.baked:
                 fdm[f.property] = self.factors[name]
+        for k, v in self.effect_values.items():
+            fdm[k] = v
+        pm = fdm.get_property_manager()
+        self._indicated = {f"{s}_deg": f"fcs/{s}-ind-deg" for s in ("elevator", "aileron", "rudder")
+                           if pm.hasNode(f"fcs/{s}-ind-deg")}
+        if pm.hasNode(PITCH_INDICATED):
+            self._indicated["theta_deg"] = PITCH_INDICATED
+        self._position_error = pm.hasNode(POSITION_ERROR)
         return fdm
 
     def close(self) -> None:
         self.fdm = None
         shutil.rmtree(self._box, ignore_errors=True)
+        if getattr(self, "_stage", None):
+            shutil.rmtree(self._stage, ignore_errors=True)
 
     def __enter__(self):
         return self
@@ -225,6 +298,8 @@ class Simulator:
     def __del__(self):
         try:
             shutil.rmtree(self._box, ignore_errors=True)
+            if getattr(self, "_stage", None):
+                shutil.rmtree(self._stage, ignore_errors=True)
         except Exception:
             pass
 
@@ -240,6 +315,9 @@ class Simulator:
         for name, f in REGISTRY.items():
             if not f.baked:
                 self.fdm[f.property] = factors[name]
+        extra = {f.property: factors[n] for n, f in factors.extra.items()}
+        if extra:
+            self.set_effect_values(extra)
 
     # ------------------------------------------------------------------ loading and atmosphere
     def set_loading(self, weight_lb: float, cg_in: float | None = None, fuel_fraction: float | None = None) -> None:
@@ -295,7 +373,38 @@ class Simulator:
 
     # ------------------------------------------------------------------ trim
     def trim(self, cond: Condition, key=None) -> TrimResult:
-        """Trim to a condition. ``key`` identifies the point for warm starts."""
+        """Trim to a condition. ``key`` identifies the point for warm starts.
+
+        Where the aircraft defines a pitot-static position error (``velocities/position-
+        error-kts``, measured minus true, in calibrated knots), the condition's airspeed is
+        the measured one: the trim is repeated at the true speed that shows it."""
+        if not self._position_error:
+            return self._trim(cond, key)
+        if cond.mode == "level_full_throttle":          # speed free: report the measured speed
+            t = self._trim(cond, key)
+            err = float(self.fdm[POSITION_ERROR])
+            t.extra["position_error_kt"] = err
+            t.ktas += err * t.ktas / max(t.kcas, 1e-6)
+            t.kcas += err
+            return t
+        measured = cond.ktas if cond.ktas is not None else cond.kcas
+        c, t, err = cond, None, 0.0
+        for _ in range(8):
+            t = self._trim(c, key)
+            if not t.trimmed:
+                break
+            err = float(self.fdm[POSITION_ERROR])
+            scale = t.ktas / max(t.kcas, 1e-6) if cond.ktas is not None else 1.0
+            want = measured - err * scale
+            now = c.ktas if cond.ktas is not None else c.kcas
+            if abs(want - now) < 0.005:
+                break
+            c = replace(cond, ktas=want) if cond.ktas is not None else replace(cond, kcas=want)
+        t.condition = cond
+        t.extra["position_error_kt"] = err
+        return t
+
+    def _trim(self, cond: Condition, key=None) -> TrimResult:
         self.trims += 1
         fdm = self.fdm
         try:
@@ -428,7 +537,7 @@ class Simulator:
         res = float(np.max(np.abs(r)))
         out = TrimResult(cond, True, residual=res, evals=nfev + 1)
         for k, p in OUTPUTS.items():
-            setattr(out, k, float(fdm[p]))
+            setattr(out, k, float(fdm[self._indicated.get(k, p)]))
         out.throttle = cond.throttle if (full or speed_free) else float(x[2])
         out.extra["throttle_required"] = out.throttle
         out.extra["trim_aid_lbf"] = float(fdm[TRIM_AID])

@@ -152,6 +152,29 @@ def parity_panels(evals: Mapping[str, object], metric: str) -> Figure:
     return fig
 
 
+def residuals_vs(before, after, metric: str, regressor: str) -> Figure:
+    """Residual (model - data) of one metric against one regressor of the model's trims,
+    before (grey) and after (blue) closing the loop, with the tolerance band."""
+    from .diagnose import REGRESSORS
+    fig, ax = _ax(None, (4.8, 3.4))
+    unit, f = REGRESSORS[regressor]
+    tol = METRICS[metric].tol_for(1.0)
+    for label, ev, st in (("before", before, dict(color="tab:gray", marker="o", ms=4, ls="none", alpha=0.7)),
+                          ("after", after, dict(color="tab:blue", marker="o", ms=4, ls="none"))):
+        pts = [p for p in ev.points if p.trimmed and p.trim is not None and np.isfinite(p.error.get(metric, np.nan))]
+        x = [f(p.trim) for p in pts]
+        y = [p.error[metric] for p in pts]
+        ax.plot(x, y, label=label, **st)
+    ax.axhspan(-tol, tol, color="tab:green", alpha=0.12, label="tolerance")
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_xlabel(f"{regressor} [{unit}]")
+    ax.set_ylabel(f"{metric} model - data")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title(f"{metric} residual vs {regressor}", fontsize=9)
+    return fig
+
+
 def aero_polars(curves: Mapping[str, Mapping[str, np.ndarray]], ax=None) -> Figure:
     """CL vs alpha and CL vs CD for each model (curves: label -> {alpha_deg, CL, CD})."""
     if ax is None:

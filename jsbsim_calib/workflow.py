@@ -256,3 +256,31 @@ def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps:
     return TrimsCalibration(name, results, evaluations, poh_before, poh_after,
                             {k: thesis_summary(ds) for k, ds in ft.items()}, final, list(skip),
                             time.perf_counter() - t0, trims)
+
+
+# --------------------------------------------------------------------------- close the loop
+def run_close_loop(root: Path | str, name: str, data: Path | str, *, skip_steps: tuple[str, ...] = (),
+                   progress: Callable[[str], None] | None = None):
+    """Close the loop on an aircraft with one data file (:func:`jsbsim_calib.closeloop.close_loop`).
+
+    ``skip_steps``: first rerun stage 2a from the aircraft's stage-1 factors without these
+    steps (e.g. ``("pfactor",)``: let the loop find what the step would have fitted)."""
+    from .closeloop import close_loop
+    root = Path(root)
+    say = progress or (lambda s: None)
+    sim = Simulator(root, name)
+    start = sim.factors
+    if skip_steps:
+        say(f"stage 2a without {', '.join(skip_steps)}")
+        start = run_trims(root, name, skip=tuple(skip_steps), progress=say).factors
+        sim.set_factors(start)
+    ds = load_data_for(sim, data)
+    res = close_loop(sim, ds, progress=say)
+    res.notes.append(f"model: {name}" + (f", stage 2a rerun without {', '.join(skip_steps)}" if skip_steps else ""))
+    sim.close()
+    return res
+
+
+def load_data_for(sim: Simulator, data: Path | str) -> Dataset:
+    """A data file checked against the aircraft (its control-travel table for snapshots)."""
+    return load_dataset(data, control_travel=sim.geometry.control_travel_file, geometry=sim.geometry)

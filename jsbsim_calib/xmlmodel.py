@@ -646,7 +646,7 @@ def set_factor_values(tree: etree._ElementTree, factors: Mapping[str, float]) ->
         if el.get("value") is not None and name in by_prop and by_prop[name] in factors:
             el.set("value", fmt(factors[by_prop[name]], 10))
             found.add(by_prop[name])
-    missing = set(factors) - found
+    missing = {k for k in factors if k in REGISTRY} - found      # effect factors are declared by their effect
     if missing:
         raise ModelError(f"aircraft file lacks declarations for factors: {', '.join(sorted(missing))}")
 
@@ -664,3 +664,117 @@ def read_baked_factors(propeller_xml_path: Path) -> dict[str, float]:
                     out[k.strip()] = float(v)
             return out
     return {}
+
+
+def propulsion_files(aircraft_xml_path: Path) -> dict[str, str]:
+    """The engine and thruster file names an aircraft file uses ({'engine': ..., 'thruster': ...})."""
+    try:
+        root = etree.parse(str(aircraft_xml_path)).getroot()
+    except (OSError, etree.XMLSyntaxError):
+        return {}
+    out = {}
+    eng = root.find("propulsion/engine")
+    if eng is not None and eng.get("file"):
+        out["engine"] = eng.get("file")
+        thr = eng.find("thruster")
+        if thr is not None and thr.get("file"):
+            out["thruster"] = thr.get("file")
+    return out
+
+
+# --------------------------------------------------------------------------- effects
+EFFECT_SYSTEM_PREFIX = "effect: "
+
+
+def read_effect(path: Path) -> dict:
+    """Parse an effect file (jsbsim_calib/effects/*.xml): its name, what it affects, its
+    factors and its XML parts (placeholders such as {prop_radius_ft} left in place)."""
+    try:
+        text = Path(path).read_text()
+        root = etree.fromstring(text.encode())
+    except (OSError, etree.XMLSyntaxError) as exc:
+        raise ModelError(f"{path}: cannot read effect: {exc}") from None
+    if root.tag != "effect" or not root.get("name"):
+        raise ModelError(f"{path}: the root element must be <effect name=...>")
+    note = ""
+    prev = root.getprevious()
+    while prev is not None:
+        if isinstance(prev, etree._Comment):
+            note = " ".join((prev.text or "").split())
+        prev = prev.getprevious()
+    factors = []
+    for f in root.findall("factor"):
+        try:
+            factors.append({"name": f.get("name"), "property": f.get("property"), "neutral": float(f.get("neutral")),
+                            "lower": float(f.get("lower")), "upper": float(f.get("upper")),
+                            "unit": f.get("unit", "-"), "doc": " ".join((f.text or "").split())})
+        except (TypeError, ValueError):
+            raise ModelError(f"{path}: factor needs name, property, neutral, lower, upper") from None
+    if not factors:
+        raise ModelError(f"{path}: an effect needs at least one <factor>")
+    return {"name": root.get("name"), "affects": tuple((root.get("affects") or "").split()),
+            "same_as": tuple((root.get("same_as") or "").split()),
+            "description": " ".join((root.findtext("description") or "").split()),
+            "regressor": " ".join((root.findtext("regressor") or "").split()), "note": note,
+            "factors": factors, "text": text}
+
+
+def add_effect(tree: etree._ElementTree, effect: dict, constants: Mapping[str, float],
+               values: Mapping[str, float] | None = None) -> None:
+    """Insert an effect into a parsed aircraft: its factor properties (persistent, with their
+    values) and functions in a <system name="effect: NAME">, its moments in <aerodynamics>."""
+    root = tree.getroot()
+    name = effect["name"]
+    if any(s.get("name") == EFFECT_SYSTEM_PREFIX + name for s in root.findall("system")):
+        raise ModelError(f"the aircraft already has the effect '{name}'")
+    try:
+        el = etree.fromstring(effect["text"].format_map({k: fmt(v) for k, v in constants.items()}).encode())
+    except KeyError as exc:
+        raise ModelError(f"effect '{name}' needs the constant {exc}") from None
+    values = dict(values or {})
+    system = E("system", name=EFFECT_SYSTEM_PREFIX + name)
+    comment(system, f"Effect '{name}' (added by jsbsim-calib close-loop): {effect['description']}. "
+                    f"{effect['note']}")
+    for f in effect["factors"]:
+        comment(system, f"{f['name']}: {f['doc']}. Bounds [{f['lower']:g}, {f['upper']:g}] {f['unit']}, "
+                        f"neutral {f['neutral']:g}")
+        sub(system, "property", f" {f['property']} ", value=fmt(values.get(f["property"], f["neutral"]), 10),
+            persistent="true")
+    part = el.find("system")
+    if part is not None:
+        for child in part:
+            system.append(child)
+    systems = root.findall("system")
+    (systems[-1] if systems else root.find("flight_control")).addnext(system)
+    part = el.find("aerodynamics")
+    if part is not None:
+        aero = root.find("aerodynamics")
+        for axis in part.findall("axis"):
+            # JSBSim keeps only the last <axis> of a name: the functions join the existing one
+            target = aero.find(f"axis[@name='{axis.get('name')}']")
+            if target is None:
+                target = sub(aero, "axis", name=axis.get("name"))
+            comment(target, f"effect '{name}'")
+            for fn in axis:
+                target.append(fn)
+
+
+def effect_values(tree: etree._ElementTree) -> dict[str, dict[str, float]]:
+    """Effects present in a parsed aircraft: name -> {factor property: value}."""
+    out = {}
+    for s in tree.getroot().findall("system"):
+        n = s.get("name", "")
+        if n.startswith(EFFECT_SYSTEM_PREFIX):
+            out[n[len(EFFECT_SYSTEM_PREFIX):]] = {(p.text or "").strip(): float(p.get("value"))
+                                                  for p in s.findall("property") if p.get("value") is not None}
+    return out
+
+
+def set_effect_values(tree: etree._ElementTree, values: Mapping[str, float]) -> None:
+    """Write effect factor values into their declarations."""
+    for s in tree.getroot().findall("system"):
+        if s.get("name", "").startswith(EFFECT_SYSTEM_PREFIX):
+            for p in s.findall("property"):
+                k = (p.text or "").strip()
+                if k in values and p.get("value") is not None:
+                    p.set("value", fmt(values[k], 10))

@@ -1,0 +1,369 @@
+"""Close the loop: find structured residuals, trace them to a missing effect, add it, refit.
+
+:func:`close_loop` works on any aircraft and any trim data (flight-test snapshots, flap
+climbs, POH climb/cruise):
+
+1. evaluate the model; diagnose the residuals (:mod:`jsbsim_calib.diagnose`);
+2. split the points: every :data:`HOLDOUT`-th is held out, the rest are fitted;
+3. for every library effect the model lacks (and that moves a metric of the data): add it
+   to a copy of the aircraft, fit its factor(s) alone on the fitted points (residuals /
+   tolerance with the stages' penalties), and score it by the change of the Bayesian
+   information criterion ``-(chi2_0 - chi2_1) + k ln(n)``, each metric's residuals scaled by
+   its noise as the diagnosis estimates it (n residuals, k the effect's factors). An effect
+   of the same form as a calibration factor (``same_as``, e.g. p_factor and K_PF) adds to
+   it; that factor is then not refitted with it;
+4. accept the best candidate only if the evidence is strong (:data:`MIN_EVIDENCE`), it
+   pays for itself out of sample (4-fold cross-validation: every point predicted by a fit
+   that did not see it; the residuals must fall by :data:`MIN_HELD_GAIN`), it changes some
+   prediction by a material share of a tolerance (:data:`MATERIAL`), and it explains most
+   of the structure (:data:`MIN_EXPLAINED` of the residual sum of squares beyond the noise
+   the diagnosis estimates, in the structured metrics it moves; what it makes worse
+   elsewhere counts against it): a library effect that only grazes an unknown effect is not
+   attributed; then refit the added effects' factors together with the stage-2a factors
+   acting on the same metrics (:data:`METRIC_FACTORS`: fitted without the effect, they may
+   have stood in for it);
+5. repeat until no candidate passes; diagnose again: what is still structured is reported
+   as unexplained, with the states it correlates with, not attributed.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .calibrate import FAIL_PENALTY, FitResult, fit
+from .data import METRICS, Dataset
+from .diagnose import MetricDiagnosis, diagnose
+from .effects import Effect, library
+from .evaluate import KINDS, Evaluation, evaluate_dataset
+from .factors import FactorSet
+from .fdm import Simulator
+
+HOLDOUT = 4              # every 4th point is held out
+MIN_EVIDENCE = 10.0      # BIC decrease for "very strong" evidence (Kass & Raftery)
+MIN_HELD_GAIN = 0.10     # cross-validated residual sum of squares must fall by 10 %
+MATERIAL = 0.25          # the effect must move a prediction by a quarter of a tolerance
+MIN_EXPLAINED = 0.6      # share of the structured residual (beyond noise) the effect must explain
+MAX_EFFECTS = 4
+
+
+@dataclass
+class Candidate:
+    effect: str
+    round: int
+    factors: dict[str, float]
+    stderr: dict[str, float | None]
+    rss_fit: tuple[float, float]           # before, after (fitted points)
+    rss_held: tuple[float, float]          # before, after (held-out points)
+    n_fit: int
+    delta_bic: float
+    material: float                        # largest prediction change / tolerance
+    explained: dict[str, float] = field(default_factory=dict)   # share of each structured metric explained
+    share: float = 0.0                     # share of all the structure explained (net of damage elsewhere)
+    cv: tuple[float, float] | None = None  # cross-validated residual sum of squares, without and with
+    accepted: bool = False
+    reason: str = ""
+
+    @property
+    def score(self) -> float:
+        return -self.delta_bic
+
+    def as_dict(self) -> dict:
+        return {"effect": self.effect, "round": self.round, "score": round(self.score, 3),
+                "factor": {k: v for k, v in self.factors.items()}, "stderr": self.stderr,
+                "delta_bic": round(self.delta_bic, 3), "rss_fit": list(self.rss_fit), "rss_held": list(self.rss_held),
+                "material": round(self.material, 3), "explained": {k: round(v, 3) for k, v in self.explained.items()},
+                "explained_share": round(self.share, 3), "cross_validated": list(self.cv) if self.cv else None,
+                "accepted": self.accepted, "reason": self.reason}
+
+
+@dataclass
+class CloseLoopResult:
+    aircraft: str
+    dataset: Dataset
+    fit_points: list[int]
+    held_points: list[int]
+    before: Evaluation
+    after: Evaluation
+    diagnosis_before: dict[str, MetricDiagnosis]
+    diagnosis_after: dict[str, MetricDiagnosis]
+    candidates: list[Candidate]
+    added: list[str]
+    refits: list[FitResult]
+    factors: FactorSet
+    sim: Simulator
+    wall_time_s: float
+    notes: list[str] = field(default_factory=list)
+
+    def summaries(self, which: str) -> dict:
+        """Summaries (schema of ``evaluate``) of 'all', 'fit' or 'held' points, before and after."""
+        from .evaluate import summarize
+        idx = {"all": None, "fit": set(self.fit_points), "held": set(self.held_points)}[which]
+        out = {}
+        for label, ev in (("before", self.before), ("after", self.after)):
+            pts = [p for p in ev.points if idx is None or p.index in idx]
+            out[label] = summarize(pts, ev.metrics)
+        return out
+
+    def unexplained(self) -> list[dict]:
+        return [{"metric": m, "correlates_with": [c.regressor for c in d.correlates], "reason": d.reason,
+                 "correlations": [c.as_dict() for c in d.correlates]}
+                for m, d in self.diagnosis_after.items() if d.structured]
+
+    def to_json(self) -> dict:
+        s = self.summaries("all")
+        return {"aircraft": self.aircraft, "data": str(self.dataset.path), "kind": self.dataset.kind,
+                "before": s["before"], "candidates": [c.as_dict() for c in self.candidates], "added": self.added,
+                "after": s["after"], "unexplained": self.unexplained(),
+                "fitted_points": self.summaries("fit"), "held_out_points": self.summaries("held"),
+                "diagnosis_before": {m: d.as_dict() for m, d in self.diagnosis_before.items()},
+                "diagnosis_after": {m: d.as_dict() for m, d in self.diagnosis_after.items()},
+                "factors": {n: self.factors[n] for n in self.factors.extra},
+                "wall_time_s": round(self.wall_time_s, 2), "notes": self.notes}
+
+
+# --------------------------------------------------------------------------- residuals
+def _residuals(sim: Simulator, ds: Dataset, conds, indices) -> tuple[np.ndarray, list[str], dict]:
+    """(model - data)/tolerance at the given points, a penalty per failed trim, and the
+    model values (for the materiality test)."""
+    value = KINDS[ds.kind].value
+    r, lab, vals, failed = [], [], {}, 0
+    for i in indices:
+        c = conds[i]
+        t = sim.trim_level(c, key=("loop", i)) if c.mode == "level" else sim.trim(c, key=("loop", i))
+        row = ds.frame.iloc[i]
+        if not t.trimmed:
+            failed += 1
+        for m in ds.metrics:
+            ref = float(row[m]) if m in row else math.nan
+            if not math.isfinite(ref):
+                continue
+            v = value(m, t) if t.trimmed else math.nan
+            vals[(i, m)] = v
+            r.append((v - ref) / METRICS[m].tol_for(ref) if math.isfinite(v) else 0.0)
+            lab.append(f"{i}.{m}")
+    r.append(FAIL_PENALTY * failed)
+    lab.append("trim failures")
+    return np.array(r), lab, vals
+
+
+def _rss(r: np.ndarray) -> float:
+    return float(r @ r)
+
+
+def _by_metric(r: np.ndarray, labels: list[str]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for v, lab in zip(r, labels):
+        if "." in lab:
+            m = lab.split(".", 1)[1]
+            out[m] = out.get(m, 0.0) + float(v) ** 2
+    return out
+
+
+# The stage-2a factors that act on each measured metric: after an effect is added they are
+# refitted with it, since they were fitted without it and may have compensated for it.
+METRIC_FACTORS = {
+    "pitch_deg": ("alpha_shift_addl",),
+    "elevator_deg": ("K_de_slope", "K_de_offset"),
+    "aileron_deg": ("K_da_slope", "K_da_offset"),
+    "rudder_deg": ("K_dr_slope", "K_dr_offset"),
+}
+
+
+def companion_factors(effect: Effect) -> list[str]:
+    """Stage-2a calibration factors acting on the metrics this effect moves (not those the
+    effect duplicates, see the effect file's ``same_as``)."""
+    out = []
+    for m in effect.affects:
+        out += [f for f in METRIC_FACTORS.get(m, ()) if f not in out and f not in effect.same_as]
+    return out
+
+
+# --------------------------------------------------------------------------- the loop
+def _fit(current: Simulator, eff: Effect | None, companions: list[str], factors: FactorSet, ds: Dataset,
+         conds, points, max_nfev: int = 20) -> tuple[Simulator, FitResult | None]:
+    """A copy of ``current`` (with ``eff`` added, if given) whose effect factor(s) and
+    ``companions`` are fitted on ``points``. Without effect and companions: a plain copy."""
+    trial = current.clone()
+    start = factors
+    names = list(companions)
+    if eff is not None:
+        trial.add_effect(eff)
+        extra = eff.as_factors()
+        start = factors.with_extra(extra)
+        names = list(extra) + names
+    trial.set_factors(start)
+    if not names:
+        return trial, None
+
+    def res(fs):
+        trial.set_factors(fs)
+        r, lab, _ = _residuals(trial, ds, conds, points)
+        return r, lab
+
+    try:
+        fr = fit(f"candidate {eff.name if eff else 'companions only'}", names, start, res, sim=trial,
+                 max_nfev=max_nfev)
+    except Exception:
+        trial.close()
+        raise
+    trial.set_factors(fr.final)
+    return trial, fr
+
+
+def cross_validate(current: Simulator, eff: Effect | None, companions: list[str], factors: FactorSet,
+                   ds: Dataset, conds, folds: int = HOLDOUT) -> float:
+    """K-fold cross-validation: residual sum of squares of every point predicted by a fit
+    (of ``eff`` and ``companions``) that did not see it."""
+    n = len(ds)
+    total = 0.0
+    for f in range(folds):
+        test = [i for i in range(n) if i % folds == f]
+        train = [i for i in range(n) if i % folds != f]
+        trial, _ = _fit(current, eff, companions, factors, ds, conds, train)
+        total += _rss(_residuals(trial, ds, conds, test)[0])
+        trial.close()
+    return total
+
+
+def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None = None,
+               max_effects: int = MAX_EFFECTS, refit_companions: bool = True,
+               progress: Callable[[str], None] | None = None) -> CloseLoopResult:
+    """Close the loop on one dataset (see the module doc). ``sim`` is left unchanged; the
+    result holds a simulator of the aircraft with the added effects."""
+    t0 = time.perf_counter()
+    say = progress or (lambda s: None)
+    lib = library() if effects is None else effects
+    conds = KINDS[ds.kind].conditions(ds, sim.geometry)
+    n = len(ds)
+    held = [i for i in range(n) if i % HOLDOUT == HOLDOUT - 1]
+    fitp = [i for i in range(n) if i % HOLDOUT != HOLDOUT - 1]
+    before = evaluate_dataset(sim, ds)
+    diag0 = diagnose(before)
+    for m, d in diag0.items():
+        say(f"diagnosis {m}: {'STRUCTURED' if d.structured else 'noise'}: {d.reason}")
+    current = sim.clone()
+    factors = current.factors
+    candidates: list[Candidate] = []
+    added: list[str] = []
+    refits: list[FitResult] = []
+    for rnd in range(1, max_effects + 1):
+        diag = diag0 if rnd == 1 else diagnose(evaluate_dataset(current, ds))
+        if not any(d.structured for d in diag.values()):
+            say(f"round {rnd}: no structured residual: nothing to add")
+            break
+        r0, lab0, v0 = _residuals(current, ds, conds, fitp)
+        h0 = _residuals(current, ds, conds, held)[0]
+        per0 = _by_metric(r0, lab0)
+        rss0, hold0, n_fit = _rss(r0), _rss(h0), len(r0)
+        counts = {m: sum(1 for x in lab0 if x.endswith("." + m)) for m in per0}
+        # structure: each structured metric's sum of squares beyond its estimated noise
+        structure = {m: max(0.0, per0[m] - counts[m] * (diag[m].noise / diag[m].tolerance) ** 2)
+                     for m in per0 if m in diag and diag[m].structured}
+        tried = []
+        for name, eff in lib.items():
+            if name in current.effects or not set(eff.affects) & set(ds.metrics):
+                continue
+            try:
+                trial, fr = _fit(current, eff, [], factors, ds, conds, fitp)
+            except Exception as exc:                           # a candidate that breaks the trims is rejected
+                say(f"round {rnd}: {name}: fit failed ({exc})")
+                continue
+            r1, lab1, v1 = _residuals(trial, ds, conds, fitp)
+            h1 = _residuals(trial, ds, conds, held)[0]
+            trial.close()
+            per1 = _by_metric(r1, lab1)
+            explained = {m: (per0[m] - per1.get(m, 0.0)) / structure[m] for m in structure if structure[m] > 0}
+            rss1, hold1 = _rss(r1), _rss(h1)
+            # share of the structure of the metrics it moves, net of what it spoils elsewhere
+            own = sum(v for m, v in structure.items() if m in eff.affects)
+            share = (rss0 - rss1) / own if own > 0 else 0.0
+            k = len(eff.factors)
+            # Gaussian log-likelihood with each metric's noise (estimated by the diagnosis,
+            # in tolerance units): BIC change = -(chi2 before - chi2 after) + k ln n
+            chi = sum((per0[m] - per1.get(m, 0.0)) / max(diag[m].noise / diag[m].tolerance, 0.02) ** 2
+                      for m in per0 if m in diag)
+            chi += (float(r0[-1]) ** 2 - float(r1[-1]) ** 2)          # failed-trim penalty, unit variance
+            dbic = -chi + k * math.log(n_fit)
+            material = max((abs(v1[key] - v0[key]) / METRICS[key[1]].tol_for(1.0)
+                            for key in v1 if key in v0 and math.isfinite(v1[key]) and math.isfinite(v0[key])),
+                           default=0.0)
+            c = Candidate(name, rnd, {lab: fr.final[lab] for lab in eff.as_factors()}, dict(fr.stderr), (rss0, rss1),
+                          (hold0, hold1), n_fit, dbic, material, explained, share)
+            why = []
+            if dbic > -MIN_EVIDENCE:
+                why.append(f"evidence too weak (BIC change {dbic:+.1f}, needs <= -{MIN_EVIDENCE:g})")
+            if material < MATERIAL:
+                why.append(f"moves predictions by {material:.2f} tolerance at most (needs {MATERIAL:g})")
+            if own <= 0:
+                why.append("no structured residual in the metrics it moves")
+            elif share < MIN_EXPLAINED:
+                why.append(f"explains {100 * share:.0f} % of the structured residual (needs {100 * MIN_EXPLAINED:.0f} %)")
+            c.reason = "; ".join(why)
+            tried.append(c)
+            say(f"round {rnd}: {name:34s} BIC {dbic:+9.1f}  explains {100 * share:5.0f} %  "
+                f"{'passes the fit tests' if not why else 'rejected'}")
+        candidates += tried
+        best = None
+        for c in sorted((c for c in tried if not c.reason), key=lambda c: c.delta_bic):
+            cv0 = _rss(_residuals(current, ds, conds, list(range(n)))[0])
+            cv1 = cross_validate(current, lib[c.effect], [], factors, ds, conds)
+            c.cv = (cv0, cv1)
+            if cv1 <= (1 - MIN_HELD_GAIN) * cv0:
+                best = c
+                break
+            c.reason = (f"does not pay off out of sample: cross-validated residuals {cv0:.3g} -> {cv1:.3g} "
+                        f"(needs -{100 * MIN_HELD_GAIN:.0f} %)")
+            say(f"round {rnd}: {c.effect}: {c.reason}")
+        if best is None:
+            break
+        best.accepted = True
+        best.reason = (f"accepted: strongest evidence; out of sample {best.cv[0]:.3g} -> {best.cv[1]:.3g} "
+                       f"({HOLDOUT}-fold cross-validation)")
+        trial, fr = _fit(current, lib[best.effect], [], factors, ds, conds, fitp)
+        current.close()
+        current = trial
+        factors = fr.final
+        added.append(best.effect)
+        # refit every added effect with the calibration factors of their metrics
+        names = [n for n in factors.extra]
+        if refit_companions:
+            for e in added:
+                names += [f for f in companion_factors(lib[e]) if f not in names]
+
+        def res(fs):
+            current.set_factors(fs)
+            r, lab, _ = _residuals(current, ds, conds, fitp)
+            return r, lab
+
+        say(f"round {rnd}: added {best.effect}; refit of {', '.join(names)}")
+        rf = fit(f"refit after {best.effect}", names, factors, res, sim=current, max_nfev=30)
+        refits.append(rf)
+        factors = rf.final
+        current.set_factors(factors)
+    after = evaluate_dataset(current, ds)
+    diag1 = diagnose(after)
+    return CloseLoopResult(sim.name, ds, fitp, held, before, after, diag0, diag1, candidates, added, refits,
+                           factors, current, time.perf_counter() - t0)
+
+
+def write_aircraft(result: CloseLoopResult, root: Path, out_name: str) -> Path:
+    """Write the aircraft with its added effects as ``aircraft/<out_name>/`` of ``root`` (the
+    parent's folder copied, its XML replaced), loadable by JSBSim and by this workbench."""
+    import shutil
+    from . import xmlmodel
+    from .build import AircraftPaths
+    src = AircraftPaths(result.sim.root, result.sim.name)
+    dst = AircraftPaths(Path(root), out_name)
+    if dst.folder.resolve() != src.folder.resolve():
+        dst.folder.mkdir(parents=True, exist_ok=True)
+        for f in src.folder.iterdir():
+            if f.is_file() and f.suffix != ".xml" and f.name != "calibration.json":
+                shutil.copy(f, dst.folder / f.name)
+    tree = result.sim.aircraft_tree()
+    xmlmodel.write(tree, dst.aircraft_xml)
+    return dst.aircraft_xml

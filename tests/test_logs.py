@@ -1,0 +1,54 @@
+"""A real Garmin G1000 log evaluated by the calibrated C172 and used to close the loop."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from jsbsim_calib.data import load_dataset
+from jsbsim_calib.errors import DataError
+from jsbsim_calib.fdm import Simulator
+from jsbsim_calib.workflow import run_close_loop
+
+REPO = Path(__file__).resolve().parents[1]
+LOG = REPO / "data" / "g1000" / "log_110812_095915_KCKN.csv"
+
+
+def test_a_log_needs_the_aircraft():
+    with pytest.raises(DataError, match="empty weight"):
+        load_dataset(LOG)
+
+
+def test_evaluate_cli_on_a_log_writes_summary_segments_plot_and_table(tmp_path):
+    out = tmp_path / "log.json"
+    r = subprocess.run([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(REPO), "evaluate", "c172",
+                        "--data", str(LOG), "--json", str(out), "--report-dir", str(tmp_path)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    d = json.loads(out.read_text())
+    assert d["kind"] == "g1000" and set(d["summary"]) == {"rpm", "roc_fpm", "pitch_deg"}
+    for s in d["summary"].values():
+        assert set(s) == {"n", "rmse", "mape", "nmbe", "within_pct", "failed"}
+    kinds = [s["kind"] for s in d["segments"]]
+    assert kinds.count("cruise") == 6 and kinds.count("climb") == 2
+    assert all(s["weight_lb"] > 2100 for s in d["segments"]) and "assumed" in d["weight_assumption"]
+    # measured with the committed C172: level-flight RPM RMSE 36 rpm on the 6 cruise segments
+    assert d["summary"]["rpm"]["n"] == 6 and d["summary"]["rpm"]["rmse"] <= 50.0
+    assert d["summary"]["rpm"]["failed"] == 0 and d["summary"]["roc_fpm"]["failed"] == 0
+    assert (tmp_path / "c172" / "log_110812_095915_KCKN.png").stat().st_size > 10_000
+    assert "| 1 | cruise |" in (tmp_path / "c172" / "log_110812_095915_KCKN.md").read_text()
+
+
+def test_close_loop_accepts_a_log():
+    res = run_close_loop(REPO, "c172", LOG)
+    s = res.summaries("all")
+    assert set(s["before"]) == {"rpm", "roc_fpm", "pitch_deg"}
+    # measured: the logged pitch sits about 1.4 deg above the model's in every segment (the
+    # G1000 attitude reference), found as a constant attitude offset
+    assert res.added[:1] == ["attitude_reference_offset"]
+    assert s["before"]["pitch_deg"]["rmse"] > 1.2 and s["after"]["pitch_deg"]["rmse"] < 0.8
+    assert s["after"]["rpm"]["rmse"] <= 50.0
+    res.sim.close()
