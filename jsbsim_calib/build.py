@@ -27,7 +27,7 @@ from .errors import ModelError
 from .factors import FactorSet
 from .geometry import AircraftGeometry, load_geometry
 from .propeller import PropellerFactors, PropellerTables, apply_factors, helical_blade, propeller_tables
-from .units import FT, G0, IN, KT, LB_PER_GAL_AVGAS, LBM, SLUG, US_GAL
+from .units import FT, IN, KT, LB_PER_GAL_AVGAS, LBM, US_GAL
 from . import xmlmodel
 
 J_GRID = np.round(np.concatenate([np.arange(0.0, 1.0, 0.05), np.arange(1.0, 1.61, 0.1)]), 4)

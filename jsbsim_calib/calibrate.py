@@ -24,7 +24,7 @@ from scipy.optimize import least_squares
 
 from .data import METRICS, Dataset
 from .evaluate import KINDS
-from .factors import REGISTRY, FactorSet, stage_factors
+from .factors import FactorSet, stage_factors
 from .fdm import Condition, Simulator, TrimResult
 
 FAIL_PENALTY = 20.0          # per failed trim (method eq. 3.33)
@@ -68,7 +68,7 @@ class FitResult:
     def report(self) -> str:
         """Text report in the lmfit manner."""
         lines = [f"[[Fit: {self.stage}]]",
-                 f"    method             = least_squares (trf, bounded, normalized factors)",
+                 "    method             = least_squares (trf, bounded, normalized factors)",
                  f"    status             = {self.status}: {self.message}",
                  f"    function evals     = {self.nfev} ({self.njev} Jacobians, {self.trims} trims)",
                  f"    residuals          = {len(self.residual_names)}",

@@ -24,7 +24,6 @@ efficiency with sqrt(T/T_std) because FGPiston's air flow alone scales with 1/T.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np

@@ -18,7 +18,6 @@ import copy
 import math
 import shutil
 import tempfile
-import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Mapping
@@ -31,7 +30,7 @@ from scipy.optimize import root
 from . import xmlmodel
 from .atmosphere import isa_pressure, isa_temperature, kcas_to_ktas
 from .build import AircraftPaths, load_aircraft_geometry, propeller_tree, read_bem_csv
-from .engine import FAR_BEST_POWER, mixture_for_far, poh_mixture
+from .engine import poh_mixture
 from .errors import ModelError, TrimError
 from .factors import PROPELLER_FACTORS, REGISTRY, FactorSet
 from .units import FT, G0, KT, LB_PER_GAL_AVGAS, LBM, T0, LAPSE

@@ -6,7 +6,6 @@ from pathlib import Path
 import numpy as np
 
 from . import plots
-from .evaluate import format_summary
 from .factors import REGISTRY
 from .fdm import Simulator
 from .workflow import SteadyCalibration, TrimsCalibration, aero_curves, propeller_tables_for

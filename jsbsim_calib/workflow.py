@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -19,12 +19,12 @@ import numpy as np
 from lxml import etree
 
 from . import __version__, xmlmodel
-from .build import AircraftPaths, load_aircraft_geometry, propeller_tree, read_bem_csv, read_calibration
+from .build import AircraftPaths, load_aircraft_geometry, propeller_tree, read_bem_csv
 from .calibrate import TRIM_STEPS, FitResult, TrimStep, default_subset, steady_stage, trims_stage
 from .data import METRICS, Dataset, load_dataset
 from .errors import ModelError
 from .evaluate import Evaluation, PointResult, evaluate_dataset, summarize
-from .factors import FactorSet, PROPELLER_FACTORS
+from .factors import FactorSet
 from .fdm import Simulator
 from .propeller import PropellerFactors, apply_factors
 from .units import FT, KT

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Iterable, Mapping
+from typing import Mapping
 
 import numpy as np
 from lxml import etree
@@ -19,7 +19,7 @@ from .errors import ModelError
 from .factors import FACTORS, REGISTRY, Factor, FactorSet
 from .geometry import AircraftGeometry
 from .propeller import PropellerTables
-from .units import FT, G0, IN, LB_PER_GAL_AVGAS, LBF, LBM, SLUG, US_GAL
+from .units import FT, IN, LB_PER_GAL_AVGAS, LBF, LBM, SLUG, US_GAL
 
 E = etree.Element
 M2_TO_FT2 = 1.0 / FT**2
@@ -253,7 +253,7 @@ def _calibration_system(root, factors: FactorSet, piston: PistonParams) -> None:
         bounds = f"[{fmt(f.lower)}, {fmt(f.upper)}] {f.unit}".rstrip()
         tag = " baked into the propeller tables;" if f.baked else ""
         comment(sy, f"{f.name}: {f.doc}. Acts on {f.applies_to}. Bounds {bounds}, neutral {fmt(f.neutral)};{tag}")
-        el = sub(sy, "property", f.property, value=fmt(factors[f.name], 10), persistent="true")
+        sub(sy, "property", f.property, value=fmt(factors[f.name], 10), persistent="true")
     ch = sub(sy, "channel", name="engine calibration")
     comment(ch, "Volumetric efficiency: base value x K_HP x K_FF x (T/T_std(pressure altitude))^(1-n), so that "
                 f"power follows (T_std/T)^n, n = {fmt(piston.temperature_exponent)}, at a given pressure altitude "
@@ -343,7 +343,6 @@ def _aerodynamics(root, geom: AircraftGeometry, m: AeroModel) -> None:
     ae = sub(root, "aerodynamics")
     S_ft2 = m.S_m2 * M2_TO_FT2
     b_ft = m.b_m / FT
-    c_ft = m.cbar_m / FT
     def force(*coef):
         return product(P("aero/qbar-psf"), P("metrics/Sw-sqft"), *coef)
 

@@ -9,7 +9,7 @@ import jsbsim
 import numpy as np
 import pytest
 
-from jsbsim_calib.build import AircraftPaths, build, generate
+from jsbsim_calib.build import AircraftPaths, generate
 from jsbsim_calib.errors import GeometryError
 
 AIRCRAFT = ("c172", "sr20")

@@ -10,7 +10,6 @@ import pytest
 
 from jsbsim_calib.data import load_dataset
 from jsbsim_calib.errors import DataError
-from jsbsim_calib.fdm import Simulator
 from jsbsim_calib.workflow import run_close_loop
 
 REPO = Path(__file__).resolve().parents[1]

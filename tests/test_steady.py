@@ -4,13 +4,12 @@ import subprocess
 import sys
 
 import numpy as np
-import pandas as pd
 import pytest
 
-from jsbsim_calib.calibrate import PointSet, STEADY_NAMES, fit, point_residuals
+from jsbsim_calib.calibrate import PointSet, fit, point_residuals
 from jsbsim_calib.data import load_dataset
 from jsbsim_calib.errors import DataError
-from jsbsim_calib.evaluate import KINDS, evaluate_dataset
+from jsbsim_calib.evaluate import KINDS
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.fdm import Simulator
 

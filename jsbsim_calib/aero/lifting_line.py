@@ -87,7 +87,6 @@ def surface_strips(surf: LiftingSurface, ref_m: np.ndarray, n_half: int) -> Stri
     chord = np.interp(s, surf.y_m, surf.chord_m)
     x_le = np.interp(s, surf.y_m, surf.x_le_m)
     z = np.interp(s, surf.y_m, surf.z_m)
-    inc = np.interp(s, surf.y_m, surf.incidence_rad)
     xq = x_le + 0.25 * chord
     if surf.vertical:
         nodes = np.stack([xq, np.zeros_like(s), z], axis=-1)            # structural

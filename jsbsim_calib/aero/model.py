@@ -209,7 +209,6 @@ def flap_tables(geom: AircraftGeometry, airfoils: dict, model: AeroModel, n_half
             # the wake is a sheet of finite thickness: smooth it over 10 % of the wing chord
             V = influence(st, ht.point, freestream_dir(sol.alpha, 0.0), 0.1 * c)
             w = np.einsum("ijk,j->ik", V, sol.gamma)
-            U = np.array([math.cos(sol.alpha), 0.0, math.sin(sol.alpha)])
             wn = -np.sum(w * ht.e_normal, 1)         # positive: downwash (reduces tail angle)
             eps[i, k] = math.degrees(np.sum(wn * ht.area) / np.sum(ht.area))
     for key in ("CL", "CD0", "CDi", "Cm"):
