@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 from jsbsim_calib.fdm import Simulator
-from jsbsim_calib.calibrate import default_subset, steady_stage
+from jsbsim_calib.calibrate import steady_stage
 from jsbsim_calib.workflow import aircraft_data
 
 
@@ -23,8 +23,7 @@ def main(name: str = "c172") -> None:
     sim = Simulator(root, name, baseline=True)
     t_load = time.perf_counter() - t0
     t1 = time.perf_counter()
-    fit, ff = steady_stage(sim, climb, cruise, climb_points=default_subset(climb, 9),
-                           cruise_points=default_subset(cruise, 7))
+    fit, ff = steady_stage(sim, climb, cruise)
     wall = time.perf_counter() - t1
     rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     print(f"aircraft                 {name}")

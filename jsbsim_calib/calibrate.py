@@ -231,6 +231,14 @@ def default_subset(ds: Dataset, n: int) -> list[int]:
     return sorted(chosen)
 
 
+SUBSET_SIZE = {"poh_climb": 9, "poh_cruise": 7}      # the stage-1 subset (the method's 9 climb, 7 cruise)
+
+
+def stage1_subset(ds: Dataset) -> list[int]:
+    """The POH points stage 1 fits (and stage 2a holds)."""
+    return default_subset(ds, SUBSET_SIZE.get(ds.kind, 8))
+
+
 @dataclass
 class PointSet:
     """Trim conditions and targets of the points a fit uses."""
@@ -303,8 +311,8 @@ def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: Fact
                  max_nfev: int | None = 60) -> tuple[FitResult, FitResult]:
     """Method stage 1: the 16 coupled factors on the subset, then K_FF alone on fuel flow."""
     start = start or FactorSet()
-    ci = default_subset(climb, 9) if climb_points is None else list(climb_points)
-    ki = default_subset(cruise, 7) if cruise_points is None else list(cruise_points)
+    ci = stage1_subset(climb) if climb_points is None else list(climb_points)
+    ki = stage1_subset(cruise) if cruise_points is None else list(cruise_points)
     cps = PointSet.from_dataset(climb, sim, ci)
     kps = PointSet.from_dataset(cruise, sim, ki)
 
@@ -354,7 +362,6 @@ class TrimStep:
 
 
 HOLD_TOL_SCALE = 0.25
-SUBSET_SIZE = {"poh_climb": 9, "poh_cruise": 7}
 POH_HOLD = (Residual("poh_climb", "subset", "roc_fpm"), Residual("poh_cruise", "subset", "pct_power"),
             Residual("poh_cruise", "subset", "rpm"))
 FLIGHT_TEST_HOLD = tuple(Residual("snapshot", "all", m) for m in ("pitch_deg", "elevator_deg", "aileron_deg",
@@ -393,7 +400,7 @@ TRIM_STEPS: tuple[TrimStep, ...] = (
 
 def _select(ds: Dataset, which: str) -> list[int]:
     if which == "subset":
-        return default_subset(ds, SUBSET_SIZE.get(ds.kind, 8))
+        return stage1_subset(ds)
     flaps = ds.frame["flaps_deg"].to_numpy(float) if "flaps_deg" in ds.frame else np.zeros(len(ds))
     if which == "clean":
         return [i for i, f in enumerate(flaps) if f == 0.0]

@@ -184,21 +184,14 @@ def companion_factors(effect: Effect) -> list[str]:
 
 
 # --------------------------------------------------------------------------- the loop
-def _fit(current: Simulator, eff: Effect | None, companions: list[str], factors: FactorSet, ds: Dataset,
-         conds, points, max_nfev: int = 20) -> tuple[Simulator, FitResult | None]:
-    """A copy of ``current`` (with ``eff`` added, if given) whose effect factor(s) and
-    ``companions`` are fitted on ``points``. Without effect and companions: a plain copy."""
+def _fit(current: Simulator, eff: Effect, factors: FactorSet, ds: Dataset, conds, points,
+         max_nfev: int = 20) -> tuple[Simulator, FitResult]:
+    """A copy of ``current`` with ``eff`` added and its factor(s) fitted alone on ``points``."""
     trial = current.clone()
-    start = factors
-    names = list(companions)
-    if eff is not None:
-        trial.add_effect(eff)
-        extra = eff.as_factors()
-        start = factors.with_extra(extra)
-        names = list(extra) + names
+    trial.add_effect(eff)
+    extra = eff.as_factors()
+    start = factors.with_extra(extra)
     trial.set_factors(start)
-    if not names:
-        return trial, None
 
     def res(fs):
         trial.set_factors(fs)
@@ -206,8 +199,7 @@ def _fit(current: Simulator, eff: Effect | None, companions: list[str], factors:
         return r, lab
 
     try:
-        fr = fit(f"candidate {eff.name if eff else 'companions only'}", names, start, res, sim=trial,
-                 max_nfev=max_nfev)
+        fr = fit(f"candidate {eff.name}", list(extra), start, res, sim=trial, max_nfev=max_nfev)
     except Exception:
         trial.close()
         raise
@@ -215,16 +207,16 @@ def _fit(current: Simulator, eff: Effect | None, companions: list[str], factors:
     return trial, fr
 
 
-def cross_validate(current: Simulator, eff: Effect | None, companions: list[str], factors: FactorSet,
-                   ds: Dataset, conds, folds: int = HOLDOUT) -> float:
+def cross_validate(current: Simulator, eff: Effect, factors: FactorSet, ds: Dataset, conds,
+                   folds: int = HOLDOUT) -> float:
     """K-fold cross-validation: residual sum of squares of every point predicted by a fit
-    (of ``eff`` and ``companions``) that did not see it."""
+    of ``eff`` that did not see it."""
     n = len(ds)
     total = 0.0
     for f in range(folds):
         test = [i for i in range(n) if i % folds == f]
         train = [i for i in range(n) if i % folds != f]
-        trial, _ = _fit(current, eff, companions, factors, ds, conds, train)
+        trial, _ = _fit(current, eff, factors, ds, conds, train)
         total += _rss(_residuals(trial, ds, conds, test)[0])
         trial.close()
     return total
@@ -269,7 +261,7 @@ def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None
             if name in current.effects or not set(eff.affects) & set(ds.metrics):
                 continue
             try:
-                trial, fr = _fit(current, eff, [], factors, ds, conds, fitp)
+                trial, fr = _fit(current, eff, factors, ds, conds, fitp)
             except Exception as exc:                           # a candidate that breaks the trims is rejected
                 say(f"round {rnd}: {name}: fit failed ({exc})")
                 continue
@@ -311,7 +303,7 @@ def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None
         best = None
         for c in sorted((c for c in tried if not c.reason), key=lambda c: c.delta_bic):
             cv0 = _rss(_residuals(current, ds, conds, list(range(n)))[0])
-            cv1 = cross_validate(current, lib[c.effect], [], factors, ds, conds)
+            cv1 = cross_validate(current, lib[c.effect], factors, ds, conds)
             c.cv = (cv0, cv1)
             if cv1 <= (1 - MIN_HELD_GAIN) * cv0:
                 best = c
@@ -324,7 +316,7 @@ def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None
         best.accepted = True
         best.reason = (f"accepted: strongest evidence; out of sample {best.cv[0]:.3g} -> {best.cv[1]:.3g} "
                        f"({HOLDOUT}-fold cross-validation)")
-        trial, fr = _fit(current, lib[best.effect], [], factors, ds, conds, fitp)
+        trial, fr = _fit(current, lib[best.effect], factors, ds, conds, fitp)
         current.close()
         current = trial
         factors = fr.final

@@ -205,9 +205,8 @@ def write_close_loop_report(result, out_dir: Path, written: Path | None = None) 
     name = result.aircraft
     figs = {}
     for m, d in result.diagnosis_before.items():
-        regs = [c.regressor for c in d.correlates[:2]] or []
-        if d.structured or m in {a for e in result.added for a in ()}:
-            for reg in regs:
+        if d.structured:
+            for reg in [c.regressor for c in d.correlates[:2]]:
                 figs[f"{m}_{reg}"] = plots.residuals_vs(result.before, result.after, m, reg)
     for k, fig in figs.items():
         plots.save(fig, out_dir / f"close-loop_{_safe(k)}.png")

@@ -20,7 +20,7 @@ from lxml import etree
 
 from . import __version__, xmlmodel
 from .build import AircraftPaths, load_aircraft_geometry, propeller_tree, read_bem_csv
-from .calibrate import TRIM_STEPS, FitResult, TrimStep, default_subset, steady_stage, trims_stage
+from .calibrate import TRIM_STEPS, FitResult, TrimStep, stage1_subset, steady_stage, trims_stage
 from .data import METRICS, Dataset, load_dataset
 from .errors import ModelError
 from .evaluate import Evaluation, PointResult, evaluate_dataset, summarize
@@ -96,7 +96,7 @@ def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
     sim = Simulator(root, name, baseline=True)
     say(f"baseline: trimming {len(climb) + len(cruise)} POH points")
     baseline = {k: evaluate_dataset(sim, ds, model_kind="baseline") for k, ds in data.items()}
-    ci, ki = default_subset(climb, 9), default_subset(cruise, 7)
+    ci, ki = stage1_subset(climb), stage1_subset(cruise)
     fit, ff = steady_stage(sim, climb, cruise, start=start, climb_points=ci, cruise_points=ki, progress=say)
     sim.set_factors(ff.final)
     say(f"calibrated: trimming {len(climb) + len(cruise)} POH points")

@@ -22,3 +22,24 @@ def generated_root(tmp_path_factory) -> Path:
     for n in names:
         generate(n, root)
     return root
+
+
+def _synthetic_poh(sim, ds, indices, path: Path):
+    """Rows ``indices`` of a POH dataset with their metrics replaced by what ``sim`` (at its
+    current factors) trims to there, written to ``path`` and loaded back."""
+    from jsbsim_calib.data import load_dataset
+    from jsbsim_calib.evaluate import KINDS
+    conds = KINDS[ds.kind].conditions(ds, sim.geometry)
+    f = ds.frame.iloc[indices].copy()
+    for j, i in enumerate(indices):
+        t = sim.trim_level(conds[i]) if conds[i].mode == "level" else sim.trim(conds[i])
+        assert t.trimmed, t.reason
+        for m in ds.metrics:
+            f.loc[f.index[j], m] = KINDS[ds.kind].value(m, t)
+    f.to_csv(path, index=False)
+    return load_dataset(path)
+
+
+@pytest.fixture
+def synthetic_poh():
+    return _synthetic_poh

@@ -14,7 +14,7 @@ import pytest
 
 from jsbsim_calib.calibrate import PointSet, fit, point_residuals
 from jsbsim_calib.data import load_dataset
-from jsbsim_calib.evaluate import KINDS, evaluate_dataset
+from jsbsim_calib.evaluate import evaluate_dataset
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.fdm import Condition, Simulator
 from jsbsim_calib.stability import default_conditions, stall_speed, trim_derivatives
@@ -95,7 +95,7 @@ def test_lighter_aircraft_climbs_better(calibrated):
 TRUTH = {"K_cd0_slope": 1.10, "K_CT_scale": 0.96, "K_CQ_scale": 1.05, "K_HP": 1.04}
 
 
-def test_steady_fit_recovers_known_factors(repo, tmp_path):
+def test_steady_fit_recovers_known_factors(repo, tmp_path, synthetic_poh):
     sim = Simulator(repo, "sr20", baseline=True)
     climb = load_dataset(repo / "data" / "sr20_poh_climb.csv")
     cruise = load_dataset(repo / "data" / "sr20_poh_cruise.csv")
@@ -104,15 +104,7 @@ def test_steady_fit_recovers_known_factors(repo, tmp_path):
     # cruise rows below full power (the 2700 rpm rows need full throttle: no power margin to fit)
     part_power = [i for i, r in enumerate(cruise.frame["rpm"]) if r < 2700][::4]
     for ds, idx in ((climb, [0, 2, 4, 6, 7]), (cruise, part_power)):
-        conds = KINDS[ds.kind].conditions(ds, sim.geometry)
-        f = ds.frame.iloc[idx].copy()
-        for j, i in enumerate(idx):
-            t = sim.trim_level(conds[i]) if conds[i].mode == "level" else sim.trim(conds[i])
-            assert t.trimmed, t.reason
-            for m in ds.metrics:
-                f.loc[f.index[j], m] = KINDS[ds.kind].value(m, t)
-        f.to_csv(tmp_path / f"{ds.kind}.csv", index=False)
-        synth[ds.kind] = load_dataset(tmp_path / f"{ds.kind}.csv")
+        synth[ds.kind] = synthetic_poh(sim, ds, idx, tmp_path / f"{ds.kind}.csv")
     sim.set_factors(FactorSet())
     cps = PointSet.from_dataset(synth["poh_climb"], sim)
     kps = PointSet.from_dataset(synth["poh_cruise"], sim)

@@ -9,7 +9,6 @@ import pytest
 from jsbsim_calib.calibrate import PointSet, fit, point_residuals
 from jsbsim_calib.data import load_dataset
 from jsbsim_calib.errors import DataError
-from jsbsim_calib.evaluate import KINDS
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.fdm import Simulator
 
@@ -93,7 +92,7 @@ def test_baseline_flag_evaluates_the_uncalibrated_model(repo, tmp_path):
 TRUTH = {"K_cd0_slope": 1.12, "K_cdi": 1.08, "K_CT_scale": 0.95, "K_CQ_scale": 1.06, "K_HP": 1.03, "K_FF": 1.07}
 
 
-def test_steady_fit_recovers_known_factors_from_synthetic_poh(repo, tmp_path):
+def test_steady_fit_recovers_known_factors_from_synthetic_poh(repo, tmp_path, synthetic_poh):
     """POH-like targets made by the model with known factors are fitted back from neutral."""
     sim = Simulator(repo, "c172", baseline=True)
     climb = load_dataset(repo / "data" / "c172_poh_climb.csv")
@@ -102,15 +101,7 @@ def test_steady_fit_recovers_known_factors_from_synthetic_poh(repo, tmp_path):
     sim.set_factors(truth)
     synth = {}
     for ds, idx in ((climb, [0, 3, 6, 9, 14, 17, 20, 22, 26]), (cruise, [0, 5, 8, 13, 18, 21, 24, 29, 34, 36])):
-        conds = KINDS[ds.kind].conditions(ds, sim.geometry)
-        f = ds.frame.iloc[idx].copy()
-        for j, i in enumerate(idx):
-            t = sim.trim_level(conds[i]) if conds[i].mode == "level" else sim.trim(conds[i])
-            assert t.trimmed, t.reason
-            for m in ds.metrics:
-                f.loc[f.index[j], m] = KINDS[ds.kind].value(m, t)
-        f.to_csv(tmp_path / f"{ds.kind}.csv", index=False)
-        synth[ds.kind] = load_dataset(tmp_path / f"{ds.kind}.csv")
+        synth[ds.kind] = synthetic_poh(sim, ds, idx, tmp_path / f"{ds.kind}.csv")
     sim.set_factors(FactorSet())
     cps = PointSet.from_dataset(synth["poh_climb"], sim)
     kps = PointSet.from_dataset(synth["poh_cruise"], sim)
