@@ -32,6 +32,9 @@ from . import xmlmodel
 
 J_GRID = np.round(np.concatenate([np.arange(0.0, 1.0, 0.05), np.arange(1.0, 1.61, 0.1)]), 4)
 BETA_GRID = np.arange(8.0, 44.1, 4.0)
+# breakpoints of the baked JSBSim tables: finer than the BEM grid, so that JSBSim's linear
+# interpolation follows the (spline) curve closely and the calibration's cost stays smooth
+J_TABLE = np.round(np.arange(0.0, 1.6001, 0.02), 4)
 BEM_RPM = 2400.0
 
 
@@ -172,7 +175,7 @@ def parse_bem_csv(text: str, source: str = "propeller_bem.csv") -> PropellerTabl
 
 def propeller_tree(geom: AircraftGeometry, base: PropellerTables, factors: FactorSet, paths: AircraftPaths):
     pf = factors.propeller()
-    tables = apply_factors(base, PropellerFactors(**pf))
+    tables = apply_factors(base, PropellerFactors(**pf), J_out=J_TABLE)
     p = geom.propeller
     note = (f"{p.model}: {fmt_len(p.diameter_m)} diameter, {p.blades} blades; blade-element momentum tables "
             f"(Prandtl tip/hub loss, {p.airfoil} sections, {BEM_RPM:g} rpm) from aircraft/{paths.name}/geometry.toml")

@@ -28,8 +28,16 @@ from .factors import FactorSet, stage_factors
 from .fdm import Condition, Simulator, TrimResult
 
 FAIL_PENALTY = 20.0          # per failed trim (method eq. 3.33)
-PRIOR_WEIGHT = 0.1           # weak pull of normalized factors toward neutral (see fit)
 THROTTLE_TOL = 0.05          # throttle above 1 per 0.05 (eq. 3.32)
+# The fit (see fit; README, "Reproducible fits", for the measurements behind each value)
+PRIOR_WEIGHT = 0.5           # pull of normalized factors toward the prior centre
+LEGS = ((6.0, 0.02), (2.0, 0.02), (1.0, 0.02), (1.0, 0.002))   # (prior multiple, finite-difference step)
+TRUST_RADIUS0 = 1.0          # first trust region of every leg, normalized units (the box is [-1, 1])
+FIT_TOL = 1e-9               # ftol = xtol = gtol of scipy's least_squares
+MAX_RESTARTS = 2             # restarts of the optimizer within a leg
+RESTART_GAIN = 1e-6          # a restart must lower the cost by this share, or the leg ends
+MAX_NFEV = 600               # function evaluations of a whole fit
+STEP_PRIOR = 0.1             # stage 2a's steps fit a few factors the trims identify: a weaker pull
 
 
 @dataclass
@@ -73,7 +81,6 @@ class FitResult:
                  f"    function evals     = {self.nfev} ({self.njev} Jacobians, {self.trims} trims)",
                  f"    residuals          = {len(self.residual_names)}",
                  f"    cost (1/2 sum r^2) = {self.cost_initial:.4g} -> {self.cost_final:.4g}",
-                 f"    wall time          = {self.wall_time_s:.1f} s",
                  "[[Factors]]"]
         for n in self.names:
             f = self.final.factor(n)
@@ -98,7 +105,6 @@ class FitResult:
         return {
             "stage": self.stage, "status": self.status, "message": self.message, "nfev": self.nfev,
             "njev": self.njev, "trims": self.trims, "cost_initial": self.cost_initial, "cost_final": self.cost_final,
-            "wall_time_s": round(self.wall_time_s, 3),
             "factors": {n: {"initial": self.initial[n], "final": self.final[n], "stderr": self.stderr.get(n),
                             "lower": self.final.factor(n).lower, "upper": self.final.factor(n).upper,
                             "at_boundary": self.at_boundary(n) or None} for n in self.names},
@@ -131,17 +137,38 @@ def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: Fac
     return out, corr
 
 
+def _trf_leg(fun, jac, x0: np.ndarray, ftol: float, max_nfev: int | None, callback):
+    """One run of scipy's trust-region-reflective least squares on [-1, 1] from ``x0``.
+
+    The optimizer moves ``u = x - x0 + c`` with ``|c| = TRUST_RADIUS0``: scipy's trf starts
+    with a trust region of ``|u0|``, which would otherwise be the norm of the start itself
+    (a start a round-off away from zero would get a round-off trust region and stop)."""
+    c = np.full(len(x0), TRUST_RADIUS0 / math.sqrt(len(x0)))
+    res = least_squares(lambda u: fun(u - c + x0), c, jac=lambda u: jac(u - c + x0),
+                        bounds=(-1.0 - x0 + c, 1.0 - x0 + c), method="trf", x_scale=1.0,
+                        ftol=ftol, xtol=ftol, gtol=ftol, max_nfev=max_nfev, callback=callback)
+    res.x = np.clip(res.x - c + x0, -1.0, 1.0)
+    return res
+
+
 def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[[FactorSet], tuple[np.ndarray, list[str]]],
-        *, sim: Simulator, diff_step: float = 0.02, max_nfev: int | None = None,
-        progress: Callable[[str], None] | None = None, ftol: float = 1e-6, xtol: float = 1e-6,
-        gtol: float = 1e-8, prior: float = PRIOR_WEIGHT, prior_center: FactorSet | None = None) -> FitResult:
+        *, sim: Simulator, max_nfev: int | None = MAX_NFEV, progress: Callable[[str], None] | None = None,
+        ftol: float = FIT_TOL, prior: float = PRIOR_WEIGHT, prior_center: FactorSet | None = None) -> FitResult:
     """Least-squares fit of ``names`` (others held at ``start``).
 
-    ``prior`` adds the residuals ``prior * (x - x_neutral)`` (x = normalized factor): a weak
-    pull toward neutral that picks, among factor sets the data cannot tell apart, the one
-    closest to the physics-based model (a factor moved across half its range costs about
-    prior^2 = 0.01, a tenth of a tolerance on one point). ``prior_center``: pull toward these
-    values instead of neutral (a refit that should move factors only as far as it must).
+    ``prior`` adds the residuals ``prior * (x - x_center)`` (x = normalized factor, centre
+    neutral or ``prior_center``): among factor sets the data cannot tell apart it picks the
+    one closest to the physics-based model. A factor moved across half its range costs as
+    much as a quarter of a tolerance on one point (prior 0.5): the data's weakly identified
+    directions are pinned by the prior, not by round-off (README, "Reproducible fits").
+
+    The fit is a sequence of legs (:data:`LEGS`), each from the last one's result: first a
+    path of decreasing priors (the minimum with a strong prior is unique and every start
+    reaches it; a Gauss-Newton step amplifies a perturbation by about |r|/sigma_min^2, which
+    the strong prior keeps small while the residuals are large), then a polish with a small
+    finite-difference step. A leg restarts the optimizer from its result (a fresh trust
+    region: trf can stop on a kink of the trims) until a restart gains less than
+    :data:`RESTART_GAIN` of the cost.
     """
     names = list(names)
     t0 = time.perf_counter()
@@ -150,43 +177,37 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     bad = [n for n, x in zip(names, x0) if not -1.0 <= x <= 1.0]
     if bad:
         raise ValueError(f"start values outside the bounds of {', '.join(bad)}")
-    x_neutral = (prior_center or FactorSet(extra=start.extra)).vector(names)
+    x_center = (prior_center or FactorSet(extra=start.extra)).vector(names)
     labels: list[str] = []
     history: list[dict] = []
-    best = {"cost": math.inf, "x": x0}
+    leg = {"weight": 1.0, "step": LEGS[0][1]}
+    njev = [0]
 
     def fun(x):
         fs = start.with_vector(names, np.clip(x, -1, 1))
         r, lab = residuals(fs)
         if prior:
-            r = np.concatenate([r, prior * (fs.vector(names) - x_neutral)])
+            r = np.concatenate([r, leg["weight"] * prior * (fs.vector(names) - x_center)])
             lab = list(lab) + [f"prior {n}" for n in names]
         labels[:] = lab
-        c = 0.5 * float(r @ r)
-        if c < best["cost"]:
-            best.update(cost=c, x=np.array(x))
         return r
 
     def callback(intermediate_result):
         it = len(history) + 1
         c = float(intermediate_result.cost)
-        history.append({"iteration": it, "cost": c, "time_s": time.perf_counter() - t0,
-                        "trims": sim.trims - trims0})
+        history.append({"iteration": it, "cost": c, "prior_multiple": leg["weight"], "trims": sim.trims - trims0})
         if progress:
             progress(f"{stage}: iteration {it:3d}  cost {c:10.4g}  trims {sim.trims - trims0:6d}  "
                      f"{time.perf_counter() - t0:6.1f} s")
 
-    njev = [0]
-
     def jac(x):
-        """Forward differences with an absolute step of ``diff_step`` in normalized units
-        (larger than the trim noise; scipy's relative steps vanish at x = 0), stepping
-        inwards at a bound."""
+        """Forward differences with an absolute step in normalized units (the leg's: larger
+        than the trim noise; scipy's relative steps vanish at x = 0), inwards at a bound."""
         njev[0] += 1
         f0 = fun(x)
         J = np.empty((len(f0), len(x)))
         for i in range(len(x)):
-            h = diff_step if x[i] + diff_step <= 1.0 else -diff_step
+            h = leg["step"] if x[i] + leg["step"] <= 1.0 else -leg["step"]
             xi = np.array(x, float)
             xi[i] += h
             J[:, i] = (fun(xi) - f0) / h
@@ -196,14 +217,26 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     cost0 = 0.5 * float(r0 @ r0)
     if progress:
         progress(f"{stage}: start cost {cost0:.4g} with {len(r0)} residuals, {len(names)} factors")
-    res = least_squares(fun, x0, jac=jac, bounds=(-1.0, 1.0), method="trf", x_scale=1.0,
-                        ftol=ftol, xtol=xtol, gtol=gtol, max_nfev=max_nfev, callback=callback)
-    final = start.with_vector(names, np.clip(res.x, -1, 1))
+    x, nfev, res = x0, 0, None
+    for weight, step in (LEGS if prior else LEGS[-2:]):        # no prior: no path of priors
+        leg.update(weight=weight, step=step)
+        cost = math.inf
+        for _ in range(1 + MAX_RESTARTS):
+            left = None if max_nfev is None else max_nfev - nfev
+            if left is not None and left <= 0:
+                break
+            res = _trf_leg(fun, jac, x, ftol, left, callback)
+            nfev += res.nfev
+            gained = res.cost < (1.0 - RESTART_GAIN) * cost
+            x, cost = res.x, min(cost, float(res.cost))
+            if not gained:
+                break
+    final = start.with_vector(names, x)
     r_final, _ = residuals(final)             # leaves the simulator at the final factors
     if prior:
-        r_final = np.concatenate([r_final, prior * (final.vector(names) - x_neutral)])
+        r_final = np.concatenate([r_final, prior * (final.vector(names) - x_center)])
     se, corr = _stderr(res.jac, names, r_final, final)
-    return FitResult(stage, names, start, final, cost0, 0.5 * float(r_final @ r_final), res.nfev,
+    return FitResult(stage, names, start, final, cost0, 0.5 * float(r_final @ r_final), nfev,
                      njev[0], int(res.status), str(res.message), time.perf_counter() - t0,
                      sim.trims - trims0, se, corr, history, list(labels), r_final)
 
@@ -307,8 +340,8 @@ STEADY_NAMES = [f.name for f in stage_factors("steady") if f.name != "K_FF"]
 
 def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: FactorSet | None = None,
                  climb_points: Sequence[int] | None = None, cruise_points: Sequence[int] | None = None,
-                 progress: Callable[[str], None] | None = None, diff_step: float = 0.02,
-                 max_nfev: int | None = 60) -> tuple[FitResult, FitResult]:
+                 progress: Callable[[str], None] | None = None,
+                 max_nfev: int | None = MAX_NFEV) -> tuple[FitResult, FitResult]:
     """Method stage 1: the 16 coupled factors on the subset, then K_FF alone on fuel flow."""
     start = start or FactorSet()
     ci = stage1_subset(climb) if climb_points is None else list(climb_points)
@@ -322,8 +355,7 @@ def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: Fact
         r2, l2, f2 = point_residuals(sim, kps, ("pct_power", "rpm"))
         return np.array(r1 + r2 + [FAIL_PENALTY * (f1 + f2)]), l1 + l2 + ["trim failures"]
 
-    main = fit("steady", STEADY_NAMES, start, residuals, sim=sim, diff_step=diff_step, progress=progress,
-               max_nfev=max_nfev)
+    main = fit("steady", STEADY_NAMES, start, residuals, sim=sim, progress=progress, max_nfev=max_nfev)
     main.notes.append(f"fitted points: climb {ci}, cruise {ki} (row indices of {climb.path.name}, {cruise.path.name})")
 
     def ff_residuals(fs: FactorSet):
@@ -331,7 +363,7 @@ def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: Fact
         r, l, f = point_residuals(sim, kps, ("gph",))
         return np.array(r + [FAIL_PENALTY * f]), l + ["trim failures"]
 
-    ff = fit("fuel flow", ["K_FF"], main.final, ff_residuals, sim=sim, diff_step=diff_step, progress=progress)
+    ff = fit("fuel flow", ["K_FF"], main.final, ff_residuals, sim=sim, progress=progress)
     return main, ff
 
 
@@ -359,6 +391,7 @@ class TrimStep:
     doc: str
     hold: tuple[Residual, ...] = ()
     prior_at_start: bool = False     # pull factors toward their values at the step's start, not neutral
+    prior: float = STEP_PRIOR        # weight of that pull (see fit)
 
 
 HOLD_TOL_SCALE = 0.25
@@ -371,7 +404,10 @@ FLIGHT_TEST_HOLD = tuple(Residual("snapshot", "all", m) for m in ("pitch_deg", "
 TRIM_STEPS: tuple[TrimStep, ...] = (
     TrimStep("pitch", ("alpha_shift_addl", "K_cm_slope", "K_cm_offset"),
              (Residual("snapshot", "clean", "pitch_deg"),),
-             "pitching moment (method 3.2.1): pitch attitude of the flaps-up snapshots / 1 deg", POH_HOLD),
+             "pitching moment (method 3.2.1): pitch attitude of the flaps-up snapshots / 1 deg; the trim "
+             "elevator of all snapshots is held (the control step fits it), the POH is not: the lift curve sets "
+             "the attitude, and moving it moves the drag tables under the POH points, which the final steady "
+             "refit rebalances", (Residual("snapshot", "all", "elevator_deg"),)),
     TrimStep("control", ("K_de_slope", "K_de_offset", "K_da_slope", "K_da_offset", "K_dr_slope", "K_dr_offset"),
              (Residual("snapshot", "clean", "elevator_deg"), Residual("snapshot", "all", "aileron_deg"),
               Residual("snapshot", "all", "rudder_deg")),
@@ -394,7 +430,7 @@ TRIM_STEPS: tuple[TrimStep, ...] = (
              "stage 1 again from its values, the flight-test factors frozen: the trims bring drag the POH fit "
              "did not see (a 5 deg climb rudder, the trimmed tail load); the flight-test predictions are held "
              "and the factors are pulled toward their stage-1 values",
-             FLIGHT_TEST_HOLD, prior_at_start=True),
+             FLIGHT_TEST_HOLD, prior_at_start=True, prior=PRIOR_WEIGHT),
 )
 
 
@@ -441,7 +477,7 @@ def held_sets(sim: Simulator, data: dict[str, Dataset], hold: Sequence[Residual]
 
 def trims_stage(sim: Simulator, data: dict[str, Dataset], *, start: FactorSet,
                 steps: Sequence[TrimStep] = TRIM_STEPS, progress: Callable[[str], None] | None = None,
-                diff_step: float = 0.02, max_nfev: int | None = 40, prior: float = PRIOR_WEIGHT,
+                max_nfev: int | None = MAX_NFEV, prior: float | None = None,
                 after_step: Callable[[TrimStep, FitResult], None] | None = None) -> list[FitResult]:
     """Method stage 2a: the trim steps in order, each from the factors of the last.
 
@@ -470,8 +506,8 @@ def trims_stage(sim: Simulator, data: dict[str, Dataset], *, start: FactorSet,
                 failed += f
             return np.array(res + [FAIL_PENALTY * failed]), lab + ["trim failures"]
 
-        out = fit(step.name, list(step.factors), current, residuals, sim=sim, diff_step=diff_step,
-                  progress=progress, max_nfev=max_nfev, prior=prior,
+        out = fit(step.name, list(step.factors), current, residuals, sim=sim,
+                  progress=progress, max_nfev=max_nfev, prior=step.prior if prior is None else prior,
                   prior_center=current if step.prior_at_start else None)
         out.notes.append(step.doc)
         for ps, what in [(p, "fitted") for p in sets] + [(p, "held at the step's start") for p in held]:

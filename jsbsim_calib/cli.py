@@ -3,7 +3,7 @@
     jsbsim-calib generate AIRCRAFT [--baseline]
     jsbsim-calib calibrate AIRCRAFT --stage steady [--no-write] [--from current]
     jsbsim-calib evaluate AIRCRAFT --data FILE [--baseline] [--json OUT]
-    jsbsim-calib check AIRCRAFT
+    jsbsim-calib check AIRCRAFT [--json OUT]
     jsbsim-calib airfoil NAME
 """
 from __future__ import annotations
@@ -58,7 +58,7 @@ def _calibrate_steady(a, root: Path, say):
         files = write_product(root, a.aircraft, res.factors, "steady", res.summary())
         print("written: " + ", ".join(str(f) for f in files))
     print(f"report: {write_steady_report(res, root, Path(a.report_dir) / a.aircraft)}")
-    return res.factors
+    return res.factors, {k: e.summary() for k, e in res.calibrated.items()}
 
 
 def _calibrate_trims(a, root: Path, say, start=None):
@@ -84,24 +84,31 @@ def _calibrate_trims(a, root: Path, say, start=None):
         files = write_product(root, a.aircraft, res.factors, "trims", res.summary())
         print("written: " + ", ".join(str(f) for f in files))
     print(f"report: {write_trims_report(res, Path(a.report_dir) / a.aircraft)}")
-    return res.factors
+    return res.factors, {**{k: e.summary() for k, e in res.poh_after.items()},
+                         **{k: e.summary() for k, e in res.evaluations[last].items()}}
 
 
 def cmd_calibrate(a) -> int:
     from .build import load_aircraft_geometry
+    from .verdicts import format_verdicts, verdicts
     root = Path(a.root)
     say = _progress(a.quiet)
-    factors = None
+    factors, summaries, final = None, {}, ""
     if a.stage in ("steady", "all"):
-        factors = _calibrate_steady(a, root, say)
+        factors, summaries = _calibrate_steady(a, root, say)
+        final = "stage 1 (POH climb and cruise)"
     if a.stage in ("trims", "all"):
         if "flight_test" not in load_aircraft_geometry(root, a.aircraft).data_files:
             if a.stage == "trims":
                 raise CalibError(f"aircraft/{a.aircraft}/geometry.toml names no flight_test data ([data] table)")
             print(f"\n{a.aircraft}: no flight-test data, stage 2a skipped")
-            return 0
-        print()
-        _calibrate_trims(a, root, say, start=factors)
+        else:
+            print()
+            factors, summaries = _calibrate_trims(a, root, say, start=factors)
+            final = "stage 2a (flight-test trims, after stage 1)"
+    where = "not written (--no-write)" if a.no_write else f"written to {root / 'aircraft' / a.aircraft}"
+    print(f"\nfinal model: {final}, {where}")
+    print(format_verdicts(verdicts(summaries), f"{a.aircraft} model from {final}"))
     return 0
 
 
@@ -114,10 +121,15 @@ def cmd_evaluate(a) -> int:
         ev = evaluate_dataset(sim, ds, model_kind="baseline" if a.baseline else "calibrated",
                               progress=None)
     print(ev.table())
+    out_dir = Path(a.report_dir) / a.aircraft
     if ds.kind == "g1000":
         from .logs import write_log_report
-        png, md = write_log_report(ev, Path(a.report_dir) / a.aircraft)
-        print(f"{ds.extra['weight_note']}\nplot: {png}\nreport: {md}")
+        png, md = write_log_report(ev, out_dir)
+        print(f"{ds.extra['weight_note']}\nplot: {png}")
+    else:
+        from .report import write_evaluation_report
+        md = write_evaluation_report(ev, out_dir)
+    print(f"report: {md}")
     if a.json:
         ev.write_json(Path(a.json))
         print(f"json: {a.json}")
@@ -142,7 +154,7 @@ def cmd_close_loop(a) -> int:
     from .report import write_close_loop_report
     from .workflow import run_close_loop
     root = Path(a.root)
-    res = run_close_loop(root, a.aircraft, Path(a.data), skip_steps=tuple(a.skip_step or ()),
+    res = run_close_loop(root, a.aircraft, Path(a.data), skip_steps=tuple(a.skip or ()),
                          progress=_progress(a.quiet))
     s = res.summaries("all")
     print("before:")
@@ -166,10 +178,13 @@ def cmd_close_loop(a) -> int:
 
 def cmd_check(a) -> int:
     from .fdm import Simulator
-    from .stability import report
+    from .stability import format_report, report
     with Simulator(Path(a.root), a.aircraft, baseline=a.baseline) as sim:
         rep = report(sim)
-    print(json.dumps(rep, indent=2))
+    print(format_report(rep))
+    if a.json:
+        Path(a.json).write_text(json.dumps(rep, indent=2) + "\n")
+        print(f"json: {a.json}")
     return 0
 
 
@@ -186,12 +201,12 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     g = sub.add_parser("generate", help="regenerate an aircraft's JSBSim files from aircraft/NAME/geometry.toml")
-    g.add_argument("aircraft")
+    g.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
     g.add_argument("--baseline", action="store_true", help="write neutral factors (ignore calibration.json)")
     g.set_defaults(func=cmd_generate)
 
     c = sub.add_parser("calibrate", help="run a calibration stage and write the calibrated aircraft")
-    c.add_argument("aircraft")
+    c.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
     c.add_argument("--stage", required=True, choices=("steady", "trims", "all"),
                    help="steady: POH climb/cruise (stage 1, resets later stages); trims: flight-test trims "
                         "(stage 2a, from the aircraft's stage-1 factors); all: both in order")
@@ -204,41 +219,43 @@ def build_parser() -> argparse.ArgumentParser:
     c.set_defaults(func=cmd_calibrate)
 
     e = sub.add_parser("evaluate", help="compare the model with a data file (POH, flight test, G1000 log)")
-    e.add_argument("aircraft")
-    e.add_argument("--data", required=True)
+    e.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    e.add_argument("--data", required=True,
+                   help="data file: POH climb/cruise CSV, flight-test snapshots or flap climbs, G1000 log")
     e.add_argument("--baseline", action="store_true", help="evaluate the uncalibrated model")
-    e.add_argument("--json", help="write the results as JSON")
-    e.add_argument("--report-dir", default="reports", help="where a G1000 log's plot and table go")
+    e.add_argument("--json", help="write the results as JSON to this file")
+    e.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
     e.set_defaults(func=cmd_evaluate)
 
     y = sub.add_parser("synth", help="synthetic flight-test snapshots flown by a truth aircraft folder")
     y.add_argument("--truth", required=True, help="aircraft folder (its XML flies as it stands)")
     y.add_argument("--out", required=True, help="snapshot CSV to write")
-    y.add_argument("--seed", type=int, default=0)
+    y.add_argument("--seed", type=int, default=0, help="seed of the campaign's random draws (default 0)")
     y.add_argument("--points", type=int, default=48, help="number of trims of the campaign (default 48)")
     y.add_argument("--noise", type=float, default=1.0, help="scale of the measurement noise (0: none)")
     y.set_defaults(func=cmd_synth)
 
     o = sub.add_parser("close-loop", help="find structured residuals, add the missing effect, refit, report")
-    o.add_argument("aircraft")
+    o.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
     o.add_argument("--data", required=True, help="flight-test snapshots, flap climbs or POH data")
-    o.add_argument("--json", help="write the result as JSON")
-    o.add_argument("--skip-step", action="append", metavar="STEP",
+    o.add_argument("--json", help="write the result as JSON to this file")
+    o.add_argument("--skip", action="append", metavar="STEP",
                    help="first rerun stage 2a without this step (e.g. pfactor); repeatable")
     o.add_argument("--out", help="name of the aircraft folder written (default AIRCRAFT_loop)")
     o.add_argument("--in-place", action="store_true", help="write the effects into the aircraft itself")
     o.add_argument("--no-write", action="store_true", help="write no aircraft")
-    o.add_argument("--report-dir", default="reports")
+    o.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
     o.set_defaults(func=cmd_close_loop)
 
     k = sub.add_parser("check", help="plausibility: lift slope, stall speed, stability and damping derivatives")
-    k.add_argument("aircraft")
-    k.add_argument("--baseline", action="store_true")
+    k.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    k.add_argument("--baseline", action="store_true", help="check the uncalibrated model (all factors neutral)")
+    k.add_argument("--json", help="also write the full report as JSON to this file")
     k.set_defaults(func=cmd_check)
 
     f = sub.add_parser("airfoil", help="recompute a stored airfoil polar with NeuralFoil")
-    f.add_argument("name")
-    f.add_argument("--out", default="airfoils")
+    f.add_argument("name", help="stored polar name, e.g. naca2412-tr05 (airfoils/NAME.csv)")
+    f.add_argument("--out", default="airfoils", help="folder to write the polar to (default airfoils/)")
     f.set_defaults(func=cmd_airfoil)
     return p
 

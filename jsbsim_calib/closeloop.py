@@ -123,7 +123,7 @@ class CloseLoopResult:
                 "diagnosis_before": {m: d.as_dict() for m, d in self.diagnosis_before.items()},
                 "diagnosis_after": {m: d.as_dict() for m, d in self.diagnosis_after.items()},
                 "factors": {n: self.factors[n] for n in self.factors.extra},
-                "wall_time_s": round(self.wall_time_s, 2), "notes": self.notes}
+                "notes": self.notes}
 
 
 # --------------------------------------------------------------------------- residuals
@@ -181,6 +181,39 @@ def companion_factors(effect: Effect) -> list[str]:
     for m in effect.affects:
         out += [f for f in METRIC_FACTORS.get(m, ()) if f not in out and f not in effect.same_as]
     return out
+
+
+# --------------------------------------------------------------------------- evidence
+# Every test is written as what passing requires, so that a NaN (a quantity that could not
+# be computed) fails it.
+NOISE_FLOOR = 0.02       # smallest noise the likelihood assumes, in tolerances
+
+
+def noise_in_tolerances(d: MetricDiagnosis) -> float:
+    """A metric's noise in tolerance units for the likelihood: the diagnosis's estimate,
+    at least :data:`NOISE_FLOOR`; the tolerance itself where the diagnosis had too few
+    points to estimate it (a conservative scale: it asks for more evidence, never less)."""
+    s = d.noise / d.tolerance
+    return max(s, NOISE_FLOOR) if math.isfinite(s) else 1.0
+
+
+def evidence_failures(delta_bic: float, material: float, structure: float, share: float) -> list[str]:
+    """Why a candidate fails the in-sample tests; empty if it passes them all."""
+    why = []
+    if not delta_bic <= -MIN_EVIDENCE:
+        why.append(f"evidence too weak (BIC change {delta_bic:+.1f}, needs <= -{MIN_EVIDENCE:g})")
+    if not material >= MATERIAL:
+        why.append(f"moves predictions by {material:.2f} tolerance at most (needs {MATERIAL:g})")
+    if not structure > 0:
+        why.append("no structured residual in the metrics it moves")
+    elif not share >= MIN_EXPLAINED:
+        why.append(f"explains {100 * share:.0f} % of the structured residual (needs {100 * MIN_EXPLAINED:.0f} %)")
+    return why
+
+
+def pays_off_out_of_sample(cv_without: float, cv_with: float) -> bool:
+    """The cross-validated residual sum of squares falls by at least :data:`MIN_HELD_GAIN`."""
+    return bool(cv_with <= (1.0 - MIN_HELD_GAIN) * cv_without)
 
 
 # --------------------------------------------------------------------------- the loop
@@ -277,7 +310,7 @@ def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None
             k = len(eff.factors)
             # Gaussian log-likelihood with each metric's noise (estimated by the diagnosis,
             # in tolerance units): BIC change = -(chi2 before - chi2 after) + k ln n
-            chi = sum((per0[m] - per1.get(m, 0.0)) / max(diag[m].noise / diag[m].tolerance, 0.02) ** 2
+            chi = sum((per0[m] - per1.get(m, 0.0)) / noise_in_tolerances(diag[m]) ** 2
                       for m in per0 if m in diag)
             chi += (float(r0[-1]) ** 2 - float(r1[-1]) ** 2)          # failed-trim penalty, unit variance
             dbic = -chi + k * math.log(n_fit)
@@ -286,15 +319,7 @@ def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None
                            default=0.0)
             c = Candidate(name, rnd, {lab: fr.final[lab] for lab in eff.as_factors()}, dict(fr.stderr), (rss0, rss1),
                           (hold0, hold1), n_fit, dbic, material, explained, share)
-            why = []
-            if dbic > -MIN_EVIDENCE:
-                why.append(f"evidence too weak (BIC change {dbic:+.1f}, needs <= -{MIN_EVIDENCE:g})")
-            if material < MATERIAL:
-                why.append(f"moves predictions by {material:.2f} tolerance at most (needs {MATERIAL:g})")
-            if own <= 0:
-                why.append("no structured residual in the metrics it moves")
-            elif share < MIN_EXPLAINED:
-                why.append(f"explains {100 * share:.0f} % of the structured residual (needs {100 * MIN_EXPLAINED:.0f} %)")
+            why = evidence_failures(dbic, material, own, share)
             c.reason = "; ".join(why)
             tried.append(c)
             say(f"round {rnd}: {name:34s} BIC {dbic:+9.1f}  explains {100 * share:5.0f} %  "
@@ -305,7 +330,7 @@ def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None
             cv0 = _rss(_residuals(current, ds, conds, list(range(n)))[0])
             cv1 = cross_validate(current, lib[c.effect], factors, ds, conds)
             c.cv = (cv0, cv1)
-            if cv1 <= (1 - MIN_HELD_GAIN) * cv0:
+            if pays_off_out_of_sample(cv0, cv1):
                 best = c
                 break
             c.reason = (f"does not pay off out of sample: cross-validated residuals {cv0:.3g} -> {cv1:.3g} "

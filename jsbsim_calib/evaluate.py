@@ -180,11 +180,14 @@ class Evaluation:
                                                               for m in self.metrics) + "  trim"
         lines.append(head)
         for p in self.points:
-            s = " ".join(f"{p.inputs.get(c, float('nan')):14.1f}" if not isinstance(p.inputs.get(c), str)
-                         else f"{p.inputs[c]:>14}" for c in inputs)
+            s = " ".join(_cell(p.inputs.get(c), 14, ".1f") for c in inputs)
             for m in self.metrics:
+                if not _finite(p.inputs.get(m)):           # the metric does not apply to this point
+                    s += f" {'-':>14} {'-':>9} {'-':>8} "
+                    continue
                 mark = "" if p.within.get(m, False) else "*"
-                s += f" {p.inputs.get(m, float('nan')):14.2f} {p.model.get(m, float('nan')):9.2f} {p.error.get(m, float('nan')):+8.2f}{mark}"
+                s += (f" {_cell(p.inputs.get(m), 14, '.2f')} {_cell(p.model.get(m), 9, '.2f')} "
+                      f"{_cell(p.error.get(m), 8, '+.2f')}{mark or ' '}")
             s += "  ok" if p.trimmed else f"  FAILED: {p.reason}"
             lines.append(s)
         lines.append("")
@@ -193,6 +196,21 @@ class Evaluation:
         for q in self.dataset.extra.get("quirks", []):
             lines.append(f"left out: {q}")
         return "\n".join(lines)
+
+
+def _finite(v) -> bool:
+    return isinstance(v, (int, float, np.number)) and not isinstance(v, bool) and math.isfinite(float(v))
+
+
+def _cell(v, width: int, spec: str) -> str:
+    """A table cell: text as it is, whole numbers without decimals, '-' for a missing value."""
+    if isinstance(v, str):
+        return f"{v:>{width}}"
+    if not _finite(v):
+        return f"{'-':>{width}}"
+    if float(v).is_integer() and "+" not in spec:
+        return f"{int(v):>{width}d}"
+    return f"{format(float(v), spec):>{width}}"
 
 
 def format_summary(summary: dict) -> str:

@@ -82,7 +82,7 @@ FACTORS: tuple[Factor, ...] = (
     _f("K_FF", 1.0, 0.8, 1.2, "-", "steady", "engine fuel flow at constant power (eq. 3.19)",
        "scales fuel flow: > 1 more fuel burnt for the same power"),
     # --- flight-test stage: pitching moment (Table 3.4, eq. 3.27-3.30)
-    _f("alpha_shift_addl", 0.0, -2.0, 2.0, "deg", "pitch", "wing strips: section angle, added to alpha_shift (eq. 3.27)",
+    _f("alpha_shift_addl", 0.0, -4.0, 4.0, "deg", "pitch", "wing strips: section angle, added to alpha_shift (eq. 3.27)",
        "additional wing section-angle shift: + lowers trim pitch attitude"),
     _f("K_cm_slope", 1.0, 0.2, 3.0, "-", "pitch", "wing strips: section pitching moment (eq. 3.30)",
        "scales the wing section pitching moment (nose-down camber moment)"),

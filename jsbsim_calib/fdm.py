@@ -40,7 +40,7 @@ R_EARTH_FT = 20925646.325  # JSBSim's reference radius for geopotential altitude
 CONTROL_LIMIT = 1.0 + 1e-6
 TRIM_AID = "external_reactions/trim-aid/magnitude"
 TRIM_AID_LBF = 300.0
-NEWTON_TOL = 2e-6        # accelerations in g (rotational in rad/s^2): a few hundredths of a fpm of climb
+NEWTON_TOL = 1e-10       # accelerations in g (rotational in rad/s^2): trims repeat to ~1e-10 whatever their start
 
 
 MODES = {

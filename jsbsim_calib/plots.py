@@ -134,12 +134,14 @@ def parity_panels(evals: Mapping[str, object], metric: str) -> Figure:
     tol = np.array([m.tol_for(v) for v in xs])
     for k, (label, (x, y)) in enumerate(pairs.items()):
         ax = fig.add_subplot(1, n, k + 1)
-        ax.fill_between(xs, xs - tol, xs + tol, color="tab:green", alpha=0.15)
+        ax.fill_between(xs, xs - tol, xs + tol, color="tab:green", alpha=0.15, label="tolerance")
         ax.plot(xs, xs, "k-", lw=0.7)
         ok = np.isfinite(x) & np.isfinite(y)
         inside = np.abs(y - x) <= np.array([m.tol_for(v) for v in x]) + 1e-9
-        ax.plot(x[ok & inside], y[ok & inside], "o", ms=3.5, color="tab:blue")
-        ax.plot(x[ok & ~inside], y[ok & ~inside], "o", ms=3.5, color="tab:red")
+        ax.plot(x[ok & inside], y[ok & inside], "o", ms=3.5, color="tab:blue", label="within tolerance")
+        ax.plot(x[ok & ~inside], y[ok & ~inside], "o", ms=3.5, color="tab:red", label="outside tolerance")
+        if k == 0:
+            ax.legend(fontsize=6, loc="upper left")
         share = 100.0 * np.sum(ok & inside) / max(1, len(x))
         ax.set_title(f"{label}: {share:.0f} % in", fontsize=8)
         ax.set_xlim(xs[0], xs[-1])
@@ -171,7 +173,7 @@ def residuals_vs(before, after, metric: str, regressor: str) -> Figure:
     ax.set_ylabel(f"{metric} model - data")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    ax.set_title(f"{metric} residual vs {regressor}", fontsize=9)
+    ax.set_title(f"Residual of {metric} against the model's {regressor} ({unit})", fontsize=9)
     return fig
 
 

@@ -81,6 +81,7 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Callable, Protocol, Sequence, runtime_checkable
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from .errors import GeometryError, Problem, raise_if
 
@@ -681,8 +682,10 @@ class PropellerFactors:
 
 
 def _interp_extrap(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
-    """Linear interpolation in ``(xp, fp)``, linear extrapolation by the end slopes."""
-    y = np.interp(x, xp, fp)
+    """Cubic-spline interpolation in ``(xp, fp)`` (smooth in the calibration shifts: linear
+    interpolation would make the baked curve kink as a shift crosses a breakpoint),
+    linear extrapolation by the end slopes."""
+    y = CubicSpline(xp, fp)(np.clip(x, xp[0], xp[-1]))
     lo = x < xp[0]
     hi = x > xp[-1]
     if np.any(lo):
@@ -714,12 +717,12 @@ def apply_factors(base: PropellerTables, f: PropellerFactors,
 
     Thrust: ``J' = J + K_CT_shift``,
     ``CT'(J) = K_CT_scale * CT(J') * (1 + K_CT_tilt (J' - J_anchor) + K_CT_quad (J' - J_anchor)^2)``
-    with ``CT(J')`` interpolated linearly in ``base`` (extrapolated by the end
+    with ``CT(J')`` interpolated by a cubic spline in ``base`` (extrapolated by the end
     slopes outside it).  Torque: the same with the ``K_CQ_*`` factors applied
     to ``CP`` (``CP = 2 pi CQ``, so scaling ``CQ`` and ``CP`` is the same).
     Constant-speed tables are treated column by column (per blade angle).
     ``J_out`` gives the output breakpoints (default: those of ``base``).
-    Neutral factors return the base values bitwise.
+    Neutral factors on the base breakpoints return the base values bitwise.
     """
     same_J = J_out is None
     Jo = base.J if J_out is None else np.asarray(J_out, dtype=float)

@@ -7,6 +7,7 @@ bounds and doc beside it, and reads/edits factor values in an existing file.
 from __future__ import annotations
 
 import math
+from decimal import Decimal
 from pathlib import Path
 from typing import Mapping
 
@@ -29,15 +30,51 @@ M2_TO_FT2 = 1.0 / FT**2
 KROO_K = 0.38
 
 
-def fmt(x: float, digits: int = 6) -> str:
-    """Stable number formatting (same bytes on every run)."""
+# Numbers in generated files have a fixed precision (README, "Reproducible bytes"): scalars
+# NUMBER_DIGITS significant digits; every table TABLE_DIGITS significant digits of its
+# largest entry, the same decimals for all its entries (an absolute precision, so that
+# entries near zero, which carry the round-off of the larger terms they are sums of, are
+# not written to more digits than their neighbours). Never an exponent.
+NUMBER_DIGITS = 6
+TABLE_DIGITS = 6
+FACTOR_DIGITS = 10          # factor values: what calibration.json records
+
+
+def fmt(x: float, digits: int = NUMBER_DIGITS) -> str:
+    """``x`` to ``digits`` significant digits in plain notation (same bytes on every run)."""
     x = float(x)
-    if x == 0.0 or not math.isfinite(x):
-        return "0" if x == 0.0 else repr(x)
-    s = f"{x:.{digits}g}"
-    if "e" in s:
-        s = f"{x:.{digits + 4}f}".rstrip("0").rstrip(".")
-    return "0" if s in ("-0", "") else s
+    if not math.isfinite(x):
+        raise ValueError(f"cannot write {x} into a JSBSim file")
+    if x == 0.0:
+        return "0"
+    return _plain(f"{x:.{digits}g}")
+
+
+def fmt_fixed(x: float, decimals: int) -> str:
+    """``x`` rounded to ``decimals`` decimal places (negative: tens, hundreds ...), plain notation."""
+    x = float(x)
+    if not math.isfinite(x):
+        raise ValueError(f"cannot write {x} into a JSBSim file")
+    if decimals < 0:
+        return _plain(f"{round(x, decimals):.0f}")
+    return _plain(f"{x:.{decimals}f}")
+
+
+def decimals_for(values, digits: int = TABLE_DIGITS) -> int:
+    """Decimal places that give ``digits`` significant digits to the largest of ``values``."""
+    top = float(np.max(np.abs(np.asarray(values, float)))) if np.size(values) else 0.0
+    if top == 0.0 or not math.isfinite(top):
+        return digits
+    return digits - 1 - math.floor(math.log10(top))
+
+
+def _plain(s: str) -> str:
+    """A number string without exponent or trailing zeros; '-0' -> '0'."""
+    if "e" in s or "E" in s:
+        s = format(Decimal(s), "f")
+    if "." in s:
+        s = s.rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "", "-") else s
 
 
 def sub(parent, tag: str, text: str | None = None, **attrib) -> etree._Element:
@@ -112,13 +149,14 @@ def table(t: Table, row_prop: str, col_prop: str | None = None):
     if t.col is not None:
         sub(el, "independentVar", col_prop, lookup="column")
     lines = []
+    d = decimals_for(t.data)
     if t.col is not None:
         lines.append("          " + " ".join(f"{fmt(c, 5):>10}" for c in t.col))
         for r, row in zip(t.row, t.data):
-            lines.append(f"{fmt(r, 5):>9} " + " ".join(f"{fmt(v, 5):>10}" for v in row))
+            lines.append(f"{fmt(r, 5):>9} " + " ".join(f"{fmt_fixed(v, d):>10}" for v in row))
     else:
         for r, v in zip(t.row, t.data):
-            lines.append(f"{fmt(r, 5):>9} {fmt(v, 6):>12}")
+            lines.append(f"{fmt(r, 5):>9} {fmt_fixed(v, d):>12}")
     td = sub(el, "tableData")
     td.text = "\n" + "\n".join(lines) + "\n        "
     return el
@@ -253,7 +291,7 @@ def _calibration_system(root, factors: FactorSet, piston: PistonParams) -> None:
         bounds = f"[{fmt(f.lower)}, {fmt(f.upper)}] {f.unit}".rstrip()
         tag = " baked into the propeller tables;" if f.baked else ""
         comment(sy, f"{f.name}: {f.doc}. Acts on {f.applies_to}. Bounds {bounds}, neutral {fmt(f.neutral)};{tag}")
-        sub(sy, "property", f.property, value=fmt(factors[f.name], 10), persistent="true")
+        sub(sy, "property", f.property, value=fmt(factors[f.name], FACTOR_DIGITS), persistent="true")
     ch = sub(sy, "channel", name="engine calibration")
     comment(ch, "Volumetric efficiency: base value x K_HP x K_FF x (T/T_std(pressure altitude))^(1-n), so that "
                 f"power follows (T_std/T)^n, n = {fmt(piston.temperature_exponent)}, at a given pressure altitude "
@@ -568,7 +606,7 @@ def propeller_xml(name: str, tables: PropellerTables, *, diameter_m: float, blad
     root = E("propeller", name=name)
     root.text = "\n"
     comment(root, note)
-    comment(root, "calibration (baked): " + ", ".join(f"{k}={fmt(v, 10)}" for k, v in factors.items()))
+    comment(root, "calibration (baked): " + ", ".join(f"{k}={fmt(v, FACTOR_DIGITS)}" for k, v in factors.items()))
     sub(root, "ixx", fmt(ixx_kgm2 / (SLUG * FT**2)), unit="SLUG*FT2")
     sub(root, "diameter", fmt(diameter_m / IN), unit="IN")
     sub(root, "numblades", str(blades))
@@ -582,11 +620,13 @@ def propeller_xml(name: str, tables: PropellerTables, *, diameter_m: float, blad
     for tname, data in (("C_THRUST", tables.CT), ("C_POWER", tables.CP)):
         t = sub(root, "table", name=tname, type="internal")
         td = sub(t, "tableData")
+        d = decimals_for(data)
         if tables.beta75_deg is None:
-            rows = [f"{fmt(j, 5):>8} {fmt(v, 6):>12}" for j, v in zip(tables.J, data)]
+            rows = [f"{fmt(j, 5):>8} {fmt_fixed(v, d):>12}" for j, v in zip(tables.J, data)]
         else:
             rows = ["         " + " ".join(f"{fmt(b, 5):>10}" for b in tables.beta75_deg)]
-            rows += [f"{fmt(j, 5):>8} " + " ".join(f"{fmt(v, 6):>10}" for v in row) for j, row in zip(tables.J, data)]
+            rows += [f"{fmt(j, 5):>8} " + " ".join(f"{fmt_fixed(v, d):>10}" for v in row)
+                     for j, row in zip(tables.J, data)]
         td.text = "\n" + "\n".join(rows) + "\n    "
     return etree.ElementTree(root)
 
@@ -643,7 +683,7 @@ def set_factor_values(tree: etree._ElementTree, factors: Mapping[str, float]) ->
         name = (el.text or "").strip()
         # declarations carry a value attribute; references inside functions do not
         if el.get("value") is not None and name in by_prop and by_prop[name] in factors:
-            el.set("value", fmt(factors[by_prop[name]], 10))
+            el.set("value", fmt(factors[by_prop[name]], FACTOR_DIGITS))
             found.add(by_prop[name])
     missing = {k for k in factors if k in REGISTRY} - found      # effect factors are declared by their effect
     if missing:
@@ -737,7 +777,7 @@ def add_effect(tree: etree._ElementTree, effect: dict, constants: Mapping[str, f
     for f in effect["factors"]:
         comment(system, f"{f['name']}: {f['doc']}. Bounds [{f['lower']:g}, {f['upper']:g}] {f['unit']}, "
                         f"neutral {f['neutral']:g}")
-        sub(system, "property", f" {f['property']} ", value=fmt(values.get(f["property"], f["neutral"]), 10),
+        sub(system, "property", f" {f['property']} ", value=fmt(values.get(f["property"], f["neutral"]), FACTOR_DIGITS),
             persistent="true")
     part = el.find("system")
     if part is not None:
@@ -776,4 +816,4 @@ def set_effect_values(tree: etree._ElementTree, values: Mapping[str, float]) -> 
             for p in s.findall("property"):
                 k = (p.text or "").strip()
                 if k in values and p.get("value") is not None:
-                    p.set("value", fmt(values[k], 10))
+                    p.set("value", fmt(values[k], FACTOR_DIGITS))

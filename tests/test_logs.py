@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -48,6 +49,9 @@ def test_close_loop_accepts_a_log():
     # measured: the logged pitch sits about 1.4 deg above the model's in every segment (the
     # G1000 attitude reference), found as a constant attitude offset
     assert res.added[:1] == ["attitude_reference_offset"]
+    # every candidate was weighed by finite evidence (the climbs are too few to estimate their
+    # noise: they weigh with their tolerance, never with NaN)
+    assert res.candidates and all(math.isfinite(c.delta_bic) for c in res.candidates)
     assert s["before"]["pitch_deg"]["rmse"] > 1.2 and s["after"]["pitch_deg"]["rmse"] < 0.8
     assert s["after"]["rpm"]["rmse"] <= 50.0
     res.sim.close()

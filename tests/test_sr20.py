@@ -115,7 +115,7 @@ def test_steady_fit_recovers_known_factors(repo, tmp_path, synthetic_poh):
         r2, l2, _ = point_residuals(sim, kps, ("pct_power", "rpm"))
         return np.array(r1 + r2), l1 + l2
 
-    res = fit("recovery", list(TRUTH), FactorSet(), residuals, sim=sim, prior=0.0, ftol=1e-10, xtol=1e-10)
+    res = fit("recovery", list(TRUTH), FactorSet(), residuals, sim=sim, prior=0.0, ftol=1e-10)
     for n, v in TRUTH.items():
         assert res.final[n] == pytest.approx(v, abs=0.01), (n, res.final[n])
     sim.close()

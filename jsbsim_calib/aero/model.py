@@ -28,9 +28,10 @@ from .lifting_line import freestream_dir, influence
 from .sections import dcm_ddelta, eta_deflection, profile_drag_increment
 from .strips import StripModel, wind_to_coeffs
 
-ALPHA_DEG = np.array([-90, -60, -45, -30, -25, -20, -18, -16, -14, -12, -10, -8, -6, -5, -4, -3, -2, -1, 0, 1, 2,
-                      3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 27,
-                      30, 35, 40, 45, 60, 90], float)
+# Half-degree steps where aircraft trim (-6 to 20 deg): JSBSim interpolates tables linearly, and
+# the slope jumps at the breakpoints make the calibration's cost rugged (README, "Reproducible fits")
+ALPHA_DEG = np.concatenate([[-90, -60, -45, -30, -25, -20, -18, -16, -14, -12, -10, -8], np.arange(-6.0, 20.01, 0.5),
+                            [21, 22, 23, 24, 25, 27, 30, 35, 40, 45, 60, 90]]).astype(float)
 SHIFT_DEG = np.array([-6.0, -4.5, -3.0, -1.5, 0.0, 1.5, 3.0, 4.5, 6.0])
 LAT_ALPHA_DEG = np.array([-10, -5, 0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 24, 30], float)
 ALPHA_H_DEG = np.array([-90, -45, -30, -25, -20, -18, -16, -14, -12, -10, -8, -6, -4, -2, 0, 2, 4, 6, 8, 10, 12,

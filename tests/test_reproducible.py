@@ -1,0 +1,132 @@
+"""Reproducible products: the main job rewrites the committed files byte for byte, and a fit
+started a round-off away from its start lands on the committed factors within the stated
+tolerance (README, "Reproducible fits").
+
+The tolerance: every factor within one standard error of the committed value (its data
+cannot tell the two apart), and every prediction on the POH and flight-test points within
+a tenth of its tolerance. A real break (a changed model, residual or fit) moves factors by
+several standard errors and predictions by far more.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jsbsim_calib.build import AircraftPaths
+from jsbsim_calib.calibrate import STEADY_NAMES
+from jsbsim_calib.data import METRICS
+from jsbsim_calib.evaluate import evaluate_dataset
+from jsbsim_calib.factors import REGISTRY, FactorSet
+from jsbsim_calib.fdm import Simulator
+from jsbsim_calib.flighttest import QuirkWarning
+from jsbsim_calib.workflow import aircraft_data, run_steady, run_trims, steady_factors
+
+REPO = Path(__file__).resolve().parents[1]
+PERTURBATION = 1e-8           # relative to the normalized range: a round-off-sized start change
+FACTOR_TOL_SE = 1.0           # factors within this many standard errors
+PREDICTION_TOL = 0.1          # predictions within this share of their tolerance
+
+
+def _copy_root(tmp: Path) -> Path:
+    root = tmp / "root"
+    for d in ("aircraft", "engine", "airfoils", "data", "scripts"):
+        shutil.copytree(REPO / d, root / d)
+    return root
+
+
+def _committed(name: str) -> dict:
+    return json.loads(AircraftPaths(REPO, name).calibration.read_text())
+
+
+def _stderr(record: dict, stage: str) -> dict[str, float]:
+    """Standard error of each factor from the fit that set it last (calibration.json)."""
+    out = {}
+    st = record["stages"][stage]
+    fits = [st["fit"], st["fuel_flow"]] if stage == "steady" else st["steps"]
+    for f in fits:
+        for n, d in f["factors"].items():
+            if d.get("stderr") is not None:
+                out[n] = d["stderr"]
+    return out
+
+
+def _perturbed_start() -> FactorSet:
+    fs = FactorSet()
+    x = fs.vector(STEADY_NAMES)
+    return fs.with_vector(STEADY_NAMES, x + PERTURBATION * np.where(np.arange(len(x)) % 2, -1.0, 1.0))
+
+
+def _assert_factors_close(factors: FactorSet, record: dict, stderr: dict[str, float], names) -> None:
+    bad = []
+    for n in names:
+        committed, se = record["factors"][n], stderr.get(n, float("nan"))
+        if not abs(factors[n] - committed) <= FACTOR_TOL_SE * se:         # NaN fails
+            bad.append(f"{n}: {factors[n]:.6g} vs committed {committed:.6g} (standard error {se:.3g})")
+    assert not bad, "factors moved beyond one standard error: " + "; ".join(bad)
+
+
+def _assert_predictions_close(name: str, factors: FactorSet, kinds) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", QuirkWarning)
+        data = aircraft_data(REPO, name, kinds)
+    bad = []
+    with Simulator(REPO, name) as committed, Simulator(REPO, name, factors=factors) as fresh:
+        for ds in data.values():
+            a, b = evaluate_dataset(committed, ds), evaluate_dataset(fresh, ds)
+            for pa, pb in zip(a.points, b.points):
+                for m in ds.metrics:
+                    if m not in pa.model:
+                        continue
+                    tol = METRICS[m].tol_for(pa.inputs[m])
+                    if not abs(pa.model[m] - pb.model.get(m, np.nan)) <= PREDICTION_TOL * tol:
+                        bad.append(f"{ds.path.name} row {pa.index} {m}: {pa.model[m]:.4g} vs {pb.model.get(m)}")
+    assert not bad, "predictions moved beyond a tenth of their tolerance: " + "; ".join(bad[:10])
+
+
+def test_main_job_rewrites_the_committed_c172_byte_for_byte(tmp_path):
+    """`calibrate c172 --stage all` (the README's main job) in a copy of the repository leaves
+    every committed file as it was; on another CPU the fit may land elsewhere within the
+    tolerance, and then only the files the factors write may differ."""
+    root = _copy_root(tmp_path)
+    reports = tmp_path / "reports"
+    r = subprocess.run([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(root), "--quiet", "calibrate", "c172",
+                        "--stage", "all", "--report-dir", str(reports)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-3000:]
+    fresh = json.loads(AircraftPaths(root, "c172").calibration.read_text())
+    record = _committed("c172")
+    changed = [p.relative_to(root) for p in root.rglob("*") if p.is_file()
+               and (REPO / p.relative_to(root)).read_bytes() != p.read_bytes()]
+    changed += [p.relative_to(tmp_path) for p in reports.rglob("*") if p.is_file()
+                and (REPO / p.relative_to(tmp_path)).read_bytes() != p.read_bytes()]
+    if fresh["factors"] == record["factors"]:
+        assert not changed, f"same factors, yet these files differ from the committed ones: {changed}"
+    else:                                   # another CPU: the fit landed elsewhere within the tolerance
+        _assert_factors_close(FactorSet(fresh["factors"]), record, _stderr(record, "trims") | _stderr(record, "steady"),
+                              list(REGISTRY))
+
+
+def test_c172_fit_from_a_perturbed_start_lands_on_the_committed_factors():
+    """Stage 1 and stage 2a, started 1e-8 away: factors within one standard error, every
+    prediction within a tenth of its tolerance."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", QuirkWarning)
+        steady = run_steady(REPO, "c172", start=_perturbed_start())
+        trims = run_trims(REPO, "c172", start=steady_factors(steady.factors))
+    record = _committed("c172")
+    fitted = [n for s in record["stages"]["trims"]["steps"] for n in s["factors"]]
+    _assert_factors_close(trims.factors, record, _stderr(record, "steady") | _stderr(record, "trims"), fitted)
+    _assert_predictions_close("c172", trims.factors, ("poh_climb", "poh_cruise", "flight_test", "flap_climb"))
+
+
+def test_sr20_steady_fit_from_a_perturbed_start_lands_on_the_committed_factors():
+    steady = run_steady(REPO, "sr20", start=_perturbed_start())
+    record = _committed("sr20")
+    _assert_factors_close(steady.factors, record, _stderr(record, "steady"), STEADY_NAMES + ["K_FF"])
+    _assert_predictions_close("sr20", steady.factors, ("poh_climb", "poh_cruise"))
