@@ -19,14 +19,15 @@ from typing import Callable
 
 import numpy as np
 
-from .aero.model import AeroModel, build_aero
-from .airfoil import AIRFOIL_DIR, load_airfoil
-from .atmosphere import density, isa_pressure, isa_temperature
-from .engine import PistonParams, design_piston
+from .physics.aero.model import AeroModel, build_aero
+from .physics.airfoil import AIRFOIL_DIR, load_airfoil
+from .physics.atmosphere import density, isa_pressure, isa_temperature
+from .physics.engine import PistonParams, design_piston
 from .errors import ModelError
 from .factors import FactorSet
-from .geometry import AircraftGeometry, load_geometry
-from .propeller import PropellerFactors, PropellerTables, apply_factors, helical_blade, propeller_tables
+from .physics.geometry import AircraftGeometry, load_geometry
+from .physics.mass import empty_inertia
+from .physics.propeller import PropellerTables, apply_factors, helical_blade, propeller_tables
 from .units import FT, IN, KT, LB_PER_GAL_AVGAS, LBM, US_GAL
 from . import xmlmodel
 
@@ -175,7 +176,7 @@ def parse_bem_csv(text: str, source: str = "propeller_bem.csv") -> PropellerTabl
 
 def propeller_tree(geom: AircraftGeometry, base: PropellerTables, factors: FactorSet, paths: AircraftPaths):
     pf = factors.propeller()
-    tables = apply_factors(base, PropellerFactors(**pf), J_out=J_TABLE)
+    tables = apply_factors(base, pf, J_out=J_TABLE)
     p = geom.propeller
     note = (f"{p.model}: {fmt_len(p.diameter_m)} diameter, {p.blades} blades; blade-element momentum tables "
             f"(Prandtl tip/hub loss, {p.airfoil} sections, {BEM_RPM:g} rpm) from aircraft/{paths.name}/geometry.toml")
@@ -189,25 +190,6 @@ def propeller_tree(geom: AircraftGeometry, base: PropellerTables, factors: Facto
 
 def fmt_len(x_m: float) -> str:
     return f"{x_m / IN:g} in"
-
-
-def empty_inertia(geom: AircraftGeometry) -> np.ndarray:
-    """Empty-aircraft inertia [kg m^2] such that the aircraft at max weight with the default
-    loading and full fuel has the radii-of-gyration inertia of the data README."""
-    W = geom.mass.max_mass_kg
-    b = geom.reference.span_m
-    L = geom.fuselage.length_m
-    R = geom.mass.radius_of_gyration
-    total = np.array([b**2 * W * R[0] ** 2 / 4, L**2 * W * R[1] ** 2 / 4, ((b + L) / 2) ** 2 * W * R[2] ** 2 / 4])
-    masses = [(s.mass_kg, s.location_m) for s in geom.mass.stations]
-    masses += [(t.capacity_m3 / US_GAL * LB_PER_GAL_AVGAS * LBM, t.location_m) for t in geom.tanks]
-    m_tot = geom.mass.empty_mass_kg + sum(m for m, _ in masses)
-    cg = (geom.mass.empty_mass_kg * geom.mass.empty_cg_m + sum(m * r for m, r in masses)) / m_tot
-    point = np.zeros(3)
-    for m, r in masses + [(geom.mass.empty_mass_kg, geom.mass.empty_cg_m)]:
-        d = r - cg
-        point += m * np.array([d[1] ** 2 + d[2] ** 2, d[0] ** 2 + d[2] ** 2, d[0] ** 2 + d[1] ** 2])
-    return np.maximum(total - point, 0.1 * total)
 
 
 def init_xml(geom: AircraftGeometry) -> str:

@@ -189,7 +189,7 @@ def cmd_check(a) -> int:
 
 
 def cmd_airfoil(a) -> int:
-    from .airfoil import regenerate
+    from .physics.airfoil import regenerate
     print(regenerate(a.name, Path(a.out)))
     return 0
 

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from . import xmlmodel
 from .factors import Factor
-from .geometry import AircraftGeometry
+from .physics.geometry import AircraftGeometry
 
 LIBRARY_DIR = Path(__file__).resolve().parent / "effects"
 

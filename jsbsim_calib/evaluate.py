@@ -25,13 +25,8 @@ import pandas as pd
 from . import flighttest, logs
 from .data import METRICS, Dataset
 from .fdm import Condition, Simulator, TrimResult
-from .geometry import AircraftGeometry
-
-
-def kias_to_kcas(geom: AircraftGeometry, kias: float) -> float:
-    """POH airspeed calibration of the aircraft (geometry [operations])."""
-    ops = geom.operations
-    return float(kias + np.interp(kias, ops.asi_kias_kt, ops.asi_kcas_kt - ops.asi_kias_kt))
+from .physics.atmosphere import kcas_from_kias
+from .physics.geometry import AircraftGeometry
 
 
 def _temperature(row) -> dict:
@@ -42,7 +37,7 @@ def _temperature(row) -> dict:
 
 def poh_climb_conditions(ds: Dataset, geom: AircraftGeometry) -> list[Condition]:
     """Full throttle, POH mixture procedure, KIAS -> KCAS by the aircraft's calibration, flight path free."""
-    return [Condition(pressure_alt_ft=r.pressure_alt_ft, weight_lb=r.weight_lb, kcas=kias_to_kcas(geom, r.kias),
+    return [Condition(pressure_alt_ft=r.pressure_alt_ft, weight_lb=r.weight_lb, kcas=kcas_from_kias(r.kias, geom.operations.airspeed_calibration),
                       mode="full_throttle", mixture="climb", flaps_deg=r.flaps_deg, **_temperature(r))
             for _, r in ds.frame.iterrows()]
 

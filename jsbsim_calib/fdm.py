@@ -28,9 +28,10 @@ from lxml import etree
 from scipy.optimize import root
 
 from . import xmlmodel
-from .atmosphere import isa_pressure, isa_temperature, kcas_to_ktas
+from .physics.atmosphere import cas_to_tas, isa_pressure, isa_temperature
 from .build import AircraftPaths, load_aircraft_geometry, propeller_tree, read_bem_csv
-from .engine import poh_mixture
+from .physics.engine import poh_mixture
+from .physics.mass import loading
 from .errors import ModelError, TrimError
 from .factors import PROPELLER_FACTORS, REGISTRY, FactorSet
 from .units import FT, G0, KT, LB_PER_GAL_AVGAS, LBM, T0, LAPSE
@@ -83,6 +84,12 @@ class Condition:
         if self.oat_c is not None:
             return self.oat_c + 273.15
         return float(isa_temperature(self.pressure_alt_ft * FT)) + self.isa_dev_c
+
+    def true_airspeed_kt(self) -> float:
+        """True airspeed [kt]: given, or from KCAS at the condition's pressure altitude and temperature."""
+        if self.ktas is not None:
+            return self.ktas
+        return float(cas_to_tas(self.kcas * KT, isa_pressure(self.pressure_alt_ft * FT), self.temperature_k()) / KT)
 
 
 @dataclass
@@ -320,30 +327,16 @@ class Simulator:
 
     # ------------------------------------------------------------------ loading and atmosphere
     def set_loading(self, weight_lb: float, cg_in: float | None = None, fuel_fraction: float | None = None) -> None:
-        """Total weight and CG station through the payload point mass; other stations empty."""
-        g = self.geometry
+        """Total weight and CG station through the payload point mass; other stations empty
+        (:func:`jsbsim_calib.physics.mass.loading`)."""
         fdm = self.fdm
-        cg_in = g.operations.poh_cg_m / 0.0254 if cg_in is None else cg_in
-        frac = g.operations.poh_fuel_fraction if fuel_fraction is None else fuel_fraction
-        for i in range(1, len(g.mass.stations) + 1):
+        for i in range(1, len(self.geometry.mass.stations) + 1):
             fdm[f"inertia/pointmass-weight-lbs[{i}]"] = 0.0
-        empty = g.mass.empty_mass_kg / LBM
-        x_e = g.mass.empty_cg_m[0] / 0.0254
-        tanks = [(t.capacity_m3 / 3.785411784e-3 * LB_PER_GAL_AVGAS, t.location_m[0] / 0.0254) for t in g.tanks]
-        fuel_cap = sum(c for c, _ in tanks)
-        fuel = min(frac * fuel_cap, max(weight_lb - empty - 1.0, 0.0))
-        for i, (cap, _) in enumerate(tanks):
-            fdm[f"propulsion/tank[{i}]/contents-lbs"] = fuel * cap / fuel_cap
-        payload = weight_lb - empty - fuel
-        if payload < 0:
-            raise TrimError(f"weight {weight_lb:g} lb is below the empty weight {empty:g} lb")
-        moment = weight_lb * cg_in - empty * x_e - sum(fuel * cap / fuel_cap * x for cap, x in tanks)
-        x_p = moment / payload if payload > 1e-6 else cg_in
-        if not -60.0 <= x_p <= 200.0:
-            raise TrimError(f"CG {cg_in:g} in at {weight_lb:g} lb cannot be reached with the payload "
-                            f"(it would sit at station {x_p:.0f} in)")
-        fdm["inertia/pointmass-weight-lbs[0]"] = payload
-        fdm["inertia/pointmass-location-X-inches[0]"] = x_p
+        load = loading(self.geometry, weight_lb, cg_in, fuel_fraction)
+        for i, contents in enumerate(load.tank_contents_lb):
+            fdm[f"propulsion/tank[{i}]/contents-lbs"] = contents
+        fdm["inertia/pointmass-weight-lbs[0]"] = load.payload_lb
+        fdm["inertia/pointmass-location-X-inches[0]"] = load.payload_station_in
 
     def set_atmosphere(self, pressure_alt_ft: float, temperature_k: float) -> None:
         """Geometric altitude and temperature bias giving this pressure altitude and temperature.
@@ -420,7 +413,7 @@ class Simulator:
             mix = float(cond.mixture)
         fdm["fcs/mixture-cmd-norm"] = mix
         fdm["fcs/flap-cmd-norm"] = cond.flaps_deg / max(1e-9, self._flap_max_deg())
-        ktas = cond.ktas if cond.ktas is not None else float(kcas_to_ktas(cond.kcas, cond.pressure_alt_ft * FT, T))
+        ktas = cond.true_airspeed_kt()
         V = ktas * KT / FT
         phi = math.radians(cond.bank_deg)
         t_std = float(isa_temperature(cond.pressure_alt_ft * FT))

@@ -38,7 +38,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import DataError, Problem
-from .units import FT, G0, GAMMA, KT, LAPSE, P0, R_AIR, T0
+from .physics.atmosphere import isa_temperature_c, kcas_from_kias, ktas_from_kcas, pressure_altitude_ft
 
 __all__ = [
     "G1000Log",
@@ -348,71 +348,6 @@ def read_g1000(source: str | Path | IO[str]) -> G1000Log:
             warnings.warn(f"{name}: required channel {col!r} has no values", G1000DataWarning,
                           stacklevel=2)
     return G1000Log(path=name, airframe=airframe, units=units, data=data, start_time=start_time)
-
-
-# --------------------------------------------------------------------------------------------
-# Air data
-# --------------------------------------------------------------------------------------------
-
-STD_BARO_INHG = 29.92                 # [inHg] standard altimeter setting
-_K_FT = LAPSE * FT / T0               # [1/ft] ISA temperature lapse / T0 = 6.8756e-6
-_N_EXP = G0 / (R_AIR * LAPSE)         # [-] ISA pressure exponent = 5.2559
-_A0_KT = math.sqrt(GAMMA * R_AIR * T0) / KT   # [kt] ISA sea-level speed of sound, 661.5
-
-
-def pressure_altitude_ft(alt_baro_ft: Any, baro_setting_inhg: Any) -> Any:
-    """Pressure altitude [ft] from indicated altitude ``AltB`` [ft] at altimeter setting ``BaroA``.
-
-    The altimeter shows the ISA altitude of the static pressure ``p`` referred to the set
-    pressure: ``p = p_set * (1 - 6.8756e-6 * AltB) ** 5.2559``. Pressure altitude is the same
-    relation solved for ``p`` with 29.92 inHg set. Works on scalars and arrays.
-    """
-    h = np.asarray(alt_baro_ft, dtype=float)
-    p_set = np.asarray(baro_setting_inhg, dtype=float)
-    p = p_set * (1.0 - _K_FT * h) ** _N_EXP
-    hp = (1.0 - (p / STD_BARO_INHG) ** (1.0 / _N_EXP)) / _K_FT
-    return float(hp) if hp.ndim == 0 else hp
-
-
-def isa_temperature_c(pressure_alt_ft: Any) -> Any:
-    """ISA temperature [deg C] at a pressure altitude [ft] (troposphere)."""
-    t = T0 - LAPSE * FT * np.asarray(pressure_alt_ft, dtype=float) - 273.15
-    return float(t) if t.ndim == 0 else t
-
-
-def kcas_from_kias(kias: Any, table: tuple[Sequence[float], Sequence[float]] | None = None) -> Any:
-    """Calibrated airspeed [kt] from indicated airspeed [kt].
-
-    Without ``table`` this is the identity (the G1000 ADC output is taken as calibrated). With
-    ``table = (kias_points, kcas_points)`` (e.g. the POH airspeed calibration, flaps up) the
-    correction ``kcas - kias`` is interpolated linearly and held constant beyond the table ends.
-    """
-    v = np.asarray(kias, dtype=float)
-    if table is not None:
-        xi = np.asarray(table[0], dtype=float)
-        yi = np.asarray(table[1], dtype=float)
-        if xi.ndim != 1 or xi.shape != yi.shape or xi.size < 1 or np.any(np.diff(xi) <= 0):
-            raise ValueError("airspeed calibration table needs two equally long sequences with "
-                             "strictly increasing KIAS")
-        v = v + np.interp(v, xi, yi - xi)
-    return float(v) if v.ndim == 0 else v
-
-
-def ktas_from_kcas(kcas: Any, pressure_alt_ft: Any, oat_c: Any) -> Any:
-    """True airspeed [kt] from calibrated airspeed [kt], pressure altitude [ft] and OAT [deg C].
-
-    Compressible (subsonic) relations: impact pressure from CAS at sea-level ISA,
-    ``qc = p0 ((1 + 0.2 (Vc/a0)^2)^3.5 - 1)``; Mach number from ``qc`` and the static pressure
-    of the pressure altitude; TAS = Mach * speed of sound at OAT.
-    """
-    vc = np.asarray(kcas, dtype=float)
-    hp = np.asarray(pressure_alt_ft, dtype=float)
-    t_k = np.asarray(oat_c, dtype=float) + 273.15
-    qc = P0 * ((1.0 + 0.2 * (vc / _A0_KT) ** 2) ** 3.5 - 1.0)
-    p = P0 * (1.0 - _K_FT * hp) ** _N_EXP
-    mach = np.sqrt(np.maximum(5.0 * ((qc / p + 1.0) ** (2.0 / 7.0) - 1.0), 0.0))
-    v = np.sign(vc) * mach * np.sqrt(GAMMA * R_AIR * t_k) / KT
-    return float(v) if v.ndim == 0 else v
 
 
 # --------------------------------------------------------------------------------------------

@@ -25,7 +25,7 @@ import pandas as pd
 from .data import Dataset
 from .fdm import Condition, TrimResult
 from .g1000 import SegmentCriteria, WeightAssumption, extract_segments, plot_log, read_g1000, segments_dataframe
-from .geometry import AircraftGeometry
+from .physics.geometry import AircraftGeometry
 
 METRICS = ("rpm", "roc_fpm", "pitch_deg")
 

@@ -42,6 +42,7 @@ import numpy as np
 
 from .errors import TrimError
 from .fdm import Condition, Simulator, TrimResult
+from .physics.atmosphere import kias_from_kcas
 
 # Central-difference steps (half the distance between the two evaluated states)
 STEP_ALPHA_RAD = math.radians(1.0)     # [rad] angle of attack
@@ -232,23 +233,6 @@ def trim_derivatives(sim: Simulator, cond: Condition) -> Derivatives:
 
 
 # --------------------------------------------------------------------------- stall
-def _kias_from_kcas(sim: Simulator, kcas: float) -> float:
-    """Indicated airspeed for a calibrated one from the aircraft's airspeed calibration
-    (linear between the table points, linear extrapolation beyond them)."""
-    ops = sim.geometry.operations
-    kias_t, kcas_t = np.asarray(ops.asi_kias_kt, float), np.asarray(ops.asi_kcas_kt, float)
-    if len(kcas_t) < 2 or not math.isfinite(kcas):
-        return kcas
-    if kcas < kcas_t[0]:
-        j = 0
-    elif kcas > kcas_t[-1]:
-        j = len(kcas_t) - 2
-    else:
-        return float(np.interp(kcas, kcas_t, kias_t))
-    slope = (kias_t[j + 1] - kias_t[j]) / (kcas_t[j + 1] - kcas_t[j])
-    return float(kias_t[j] + slope * (kcas - kcas_t[j]))
-
-
 def _lift_coefficient(sim: Simulator) -> float:
     """Stability-axis lift coefficient of the state JSBSim holds."""
     fdm = sim.fdm
@@ -326,7 +310,7 @@ def stall_speed(sim: Simulator, weight_lb: float, cg_in: float, flaps_deg: float
                 lo, reason = mid, why
         # leave the stall point's trimmed state in the simulator
         r_hi, cl_hi = point(hi)
-    return StallResult(weight_lb, cg_in, flaps_deg, pressure_alt_ft, throttle, hi, _kias_from_kcas(sim, hi), cl_hi,
+    return StallResult(weight_lb, cg_in, flaps_deg, pressure_alt_ft, throttle, hi, kias_from_kcas(hi, sim.geometry.operations.airspeed_calibration), cl_hi,
                        r_hi.alpha_deg, r_hi.elevator_deg, r_hi.gamma_deg, reason, trims)
 
 

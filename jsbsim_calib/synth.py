@@ -32,7 +32,7 @@ from typing import Callable
 
 import numpy as np
 
-from .atmosphere import kcas_to_ktas
+from .physics.atmosphere import isa_temperature_c, ktas_from_kcas
 from .fdm import Condition, Simulator, TrimResult
 from .flighttest import (CONTROL_COLUMNS, SURFACE_METRICS, ControlAxis, load_control_travel, snapshot_value)
 from .units import FT
@@ -69,7 +69,7 @@ def campaign(sim: Simulator, n: int = 48, seed: int = 0) -> list[Point]:
         return round(w, 0), round(float(rng.uniform(fwd, aft)), 1)
 
     def tas(kcas, h):
-        return float(kcas_to_ktas(kcas, h * FT, 288.15 - 0.0019812 * h))
+        return float(ktas_from_kcas(kcas, h, isa_temperature_c(h)))
 
     blocks = [("climb", n // 6), ("cruise", n // 4), ("part power", n // 8), ("flaps", n // 4)]
     blocks.append(("turn", n - sum(k for _, k in blocks)))

@@ -28,7 +28,8 @@ from .evaluate import Evaluation, PointResult, evaluate_dataset, summarize
 from .factors import FactorSet
 from .fdm import Simulator
 from .flighttest import QuirkWarning
-from .propeller import PropellerFactors, apply_factors
+from .physics.atmosphere import isa_temperature
+from .physics.propeller import apply_factors
 from .units import FT, KT
 
 
@@ -139,7 +140,7 @@ def aero_curves(sim: Simulator, alphas_deg=np.arange(-6.0, 22.01, 1.0), ktas: fl
     """Whole-aircraft CL and CD (aerodynamic forces only) vs alpha, elevator neutral, clean."""
     fdm = sim.fdm
     sim.set_loading(2400.0)
-    sim.set_atmosphere(pressure_alt_ft, float(288.15 - 0.0019812 * pressure_alt_ft))
+    sim.set_atmosphere(pressure_alt_ft, float(isa_temperature(pressure_alt_ft * FT)))
     V = ktas * KT / FT
     CL, CD = [], []
     fdm["fcs/flap-cmd-norm"] = 0.0
@@ -166,7 +167,7 @@ def aero_curves(sim: Simulator, alphas_deg=np.arange(-6.0, 22.01, 1.0), ktas: fl
 def propeller_tables_for(root: Path | str, name: str, factors: FactorSet):
     paths = AircraftPaths(Path(root), name)
     bem = read_bem_csv(paths.propeller_bem)
-    return apply_factors(bem, PropellerFactors(**factors.propeller()))
+    return apply_factors(bem, factors.propeller())
 
 
 # --------------------------------------------------------------------------- stage 2a

@@ -14,12 +14,12 @@ from typing import Mapping
 import numpy as np
 from lxml import etree
 
-from .aero.model import AeroModel, Table
-from .engine import PistonParams
+from .physics.aero.model import AeroModel, Table
+from .physics.engine import PistonParams
 from .errors import ModelError
 from .factors import FACTORS, REGISTRY, Factor, FactorSet
-from .geometry import AircraftGeometry
-from .propeller import PropellerTables
+from .physics.geometry import AircraftGeometry
+from .physics.propeller import PropellerTables
 from .units import FT, IN, LB_PER_GAL_AVGAS, LBF, LBM, SLUG, US_GAL
 
 E = etree.Element
@@ -590,7 +590,7 @@ def engine_xml(p: PistonParams, spec_note: str) -> etree._ElementTree:
     sub(root, "man-press-lag", fmt(p.man_press_lag_s))
     sub(root, "starter-torque", fmt(0.4 * p.max_hp))
     sub(root, "starter-rpm", fmt(2 * p.idle_rpm))
-    from .engine import MIXTURE_FAR, mixture_efficiency
+    from .physics.engine import MIXTURE_FAR, mixture_efficiency
     comment(root, "Mixture efficiency ME(fuel/air) = P(f) f_bp / f, P = brake power at constant air flow relative "
                   "to best power (classical spark-ignition mixture curve, jsbsim_calib.engine)")
     t = sub(root, "table", name="MIXTURE", type="internal")

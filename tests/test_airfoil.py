@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from jsbsim_calib.airfoil import (
+from jsbsim_calib.physics.airfoil import (
     AIRFOIL_DIR,
     DEFAULT_REYNOLDS,
     STORED_AIRFOILS,
@@ -97,7 +97,7 @@ def test_full_range_continuous_and_flat_plate_like(airfoils, name):
         assert src[45.0] == "viterna" and src[-45.0] == "viterna"
         # drag grows from the attached minimum to the flat-plate maximum; a fixed-transition
         # (fully turbulent) section has about twice the laminar minimum drag
-        from jsbsim_calib.airfoil import split_transition
+        from jsbsim_calib.physics.airfoil import split_transition
         limit = 0.012 if split_transition(p.name)[1] is None else 0.016
         assert p.cd_min < limit and p.cd_min < p.coefficients(30.0)[1] < cd[2]
 

@@ -18,13 +18,13 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from jsbsim_calib.aero.lifting_line import (LiftingLine, freestream_dir, kutta_joukowski, onset_velocity,
+from jsbsim_calib.physics.aero.lifting_line import (LiftingLine, freestream_dir, kutta_joukowski, onset_velocity,
                                             surface_strips)
-from jsbsim_calib.aero.sections import dcm_ddelta, section_coefficients, tau
-from jsbsim_calib.aero.strips import StripModel, wind_to_coeffs
-from jsbsim_calib.airfoil import AIRFOIL_DIR, load_airfoil
+from jsbsim_calib.physics.aero.sections import dcm_ddelta, section_coefficients, tau
+from jsbsim_calib.physics.aero.strips import StripModel, wind_to_coeffs
+from jsbsim_calib.physics.airfoil import AIRFOIL_DIR, load_airfoil
 from jsbsim_calib.build import airfoil_dirs
-from jsbsim_calib.geometry import LiftingSurface, load_geometry
+from jsbsim_calib.physics.geometry import LiftingSurface, load_geometry
 
 REPO = Path(__file__).resolve().parents[1]
 RHO, MU, SPEED = 1.1, 1.8e-5, 50.0          # [kg/m^3], [Pa s], [m/s] for the strip Reynolds numbers

@@ -16,10 +16,9 @@ import numpy as np
 import pytest
 
 from jsbsim_calib.errors import GeometryError, InputError
-from jsbsim_calib.propeller import (
+from jsbsim_calib.physics.propeller import (
     Blade,
     BEMPoint,
-    PropellerFactors,
     PropellerTables,
     SectionPolar,
     apply_factors,
@@ -281,7 +280,7 @@ def test_constant_speed_tables_increase_with_blade_angle(cs_tables: PropellerTab
 
 def test_neutral_factors_are_bitwise_identity(tables: PropellerTables, cs_tables: PropellerTables) -> None:
     for base in (tables, cs_tables):
-        out = apply_factors(base, PropellerFactors())
+        out = apply_factors(base, dict())
         assert out.CT.tobytes() == base.CT.tobytes()
         assert out.CP.tobytes() == base.CP.tobytes()
         assert out.J.tobytes() == base.J.tobytes()
@@ -290,7 +289,7 @@ def test_neutral_factors_are_bitwise_identity(tables: PropellerTables, cs_tables
 
 
 def test_scale_doubles_exactly(tables: PropellerTables) -> None:
-    out = apply_factors(tables, PropellerFactors(K_CT_scale=2.0, K_CQ_scale=0.5))
+    out = apply_factors(tables, dict(K_CT_scale=2.0, K_CQ_scale=0.5))
     np.testing.assert_array_equal(out.CT, 2.0 * tables.CT)
     np.testing.assert_array_equal(out.CP, 0.5 * tables.CP)
     assert out.provenance["factor.K_CT_scale"] == "2.0"
@@ -298,7 +297,7 @@ def test_scale_doubles_exactly(tables: PropellerTables) -> None:
 
 def test_shift_moves_curve(tables: PropellerTables) -> None:
     shift = 0.1                                    # two table steps
-    out = apply_factors(tables, PropellerFactors(K_CT_shift=shift, K_CQ_shift=-shift))
+    out = apply_factors(tables, dict(K_CT_shift=shift, K_CQ_shift=-shift))
     np.testing.assert_allclose(out.CT[:-2], tables.CT[2:], atol=1e-12)
     np.testing.assert_allclose(out.CP[2:], tables.CP[:-2], atol=1e-12)
     # beyond the table: linear extrapolation by the end slope
@@ -307,7 +306,7 @@ def test_shift_moves_curve(tables: PropellerTables) -> None:
 
 
 def test_tilt_and_quad_by_hand(tables: PropellerTables) -> None:
-    f = PropellerFactors(J_anchor=0.6, K_CT_scale=1.1, K_CT_tilt=0.5, K_CT_quad=-2.0,
+    f = dict(J_anchor=0.6, K_CT_scale=1.1, K_CT_tilt=0.5, K_CT_quad=-2.0,
                          K_CQ_shift=0.0, K_CQ_tilt=-0.3, K_CQ_quad=1.0)
     out = apply_factors(tables, f)
     J = tables.J
@@ -322,7 +321,7 @@ def test_tilt_and_quad_by_hand(tables: PropellerTables) -> None:
 
 
 def test_factors_on_constant_speed_tables_per_column(cs_tables: PropellerTables) -> None:
-    f = PropellerFactors(K_CT_shift=0.05, K_CT_scale=0.9, K_CT_tilt=0.2, K_CQ_scale=1.2, K_CQ_quad=0.4)
+    f = dict(K_CT_shift=0.05, K_CT_scale=0.9, K_CT_tilt=0.2, K_CQ_scale=1.2, K_CQ_quad=0.4)
     out = apply_factors(cs_tables, f)
     assert out.CT.shape == cs_tables.CT.shape and out.beta75_deg is not None
     np.testing.assert_array_equal(out.beta75_deg, cs_tables.beta75_deg)
@@ -334,7 +333,7 @@ def test_factors_on_constant_speed_tables_per_column(cs_tables: PropellerTables)
         np.testing.assert_allclose(out.CP[:, k], col.CP, rtol=0, atol=1e-15)
     # a different output grid is allowed
     Jo = np.linspace(0.0, 1.2, 7)
-    out2 = apply_factors(cs_tables, PropellerFactors(), J_out=Jo)
+    out2 = apply_factors(cs_tables, dict(), J_out=Jo)
     np.testing.assert_array_equal(out2.J, Jo)
     assert out2.CT.shape == (7, cs_tables.beta75_deg.size)
 
@@ -346,7 +345,7 @@ def _clarky_available() -> bool:
     if not (REPO / "airfoils" / "clarky.csv").exists():
         return False
     try:
-        import jsbsim_calib.airfoil as af  # noqa: F401
+        import jsbsim_calib.physics.airfoil as af  # noqa: F401
     except Exception:
         return False
     return hasattr(af, "load_airfoil")
@@ -354,7 +353,7 @@ def _clarky_available() -> bool:
 
 @pytest.mark.skipif(not _clarky_available(), reason="jsbsim_calib.airfoil or airfoils/clarky.csv not available")
 def test_c172_prop_with_stored_clarky_polar() -> None:
-    from jsbsim_calib.airfoil import load_airfoil
+    from jsbsim_calib.physics.airfoil import load_airfoil
 
     section = load_airfoil("clarky", [REPO / "airfoils"])
     blade = c172_blade(section=section)

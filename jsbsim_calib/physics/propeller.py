@@ -77,13 +77,14 @@ Thrust and torque are integrated over the stations with the trapezoid rule in
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
-from typing import Callable, Protocol, Sequence, runtime_checkable
+from dataclasses import dataclass, field, replace
+from typing import Callable, Mapping, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from .errors import GeometryError, Problem, raise_if
+from ..errors import GeometryError, Problem, raise_if
+from ..factors import REGISTRY, FactorError
 
 __all__ = [
     "SectionPolar",
@@ -93,7 +94,6 @@ __all__ = [
     "bem_point",
     "PropellerTables",
     "propeller_tables",
-    "PropellerFactors",
     "apply_factors",
     "MACH_CAP",
 ]
@@ -666,21 +666,6 @@ def propeller_tables(
 # --------------------------------------------------------------------------- calibration factors
 
 
-@dataclass(frozen=True)
-class PropellerFactors:
-    """The calibration method's propeller factors (neutral values as defaults)."""
-
-    J_anchor: float = 0.6        # [-] advance ratio about which tilt and quad act
-    K_CT_shift: float = 0.0      # [-] J shift of the thrust curve
-    K_CT_scale: float = 1.0      # [-] thrust scale
-    K_CT_tilt: float = 0.0       # [-] linear thrust change per unit (J' - J_anchor)
-    K_CT_quad: float = 0.0       # [-] quadratic thrust change per unit (J' - J_anchor)^2
-    K_CQ_shift: float = 0.0      # [-] J shift of the torque (power) curve
-    K_CQ_scale: float = 1.0      # [-] torque (power) scale
-    K_CQ_tilt: float = 0.0       # [-] linear torque change per unit (J' - J_anchor)
-    K_CQ_quad: float = 0.0       # [-] quadratic torque change per unit (J' - J_anchor)^2
-
-
 def _interp_extrap(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
     """Cubic-spline interpolation in ``(xp, fp)`` (smooth in the calibration shifts: linear
     interpolation would make the baked curve kink as a shift crosses a breakpoint),
@@ -711,9 +696,20 @@ def _apply_curve(J_base: np.ndarray, C: np.ndarray, J_out: np.ndarray, same_J: b
     return base[:, 0] if C.ndim == 1 else base
 
 
-def apply_factors(base: PropellerTables, f: PropellerFactors,
+def propeller_factor_values(factors: Mapping[str, float]) -> dict[str, float]:
+    """The propeller factors (the registry's baked factors, in its order), neutral unless
+    ``factors`` gives them. Values are not bounded here: the tables take any."""
+    names = [n for n, f in REGISTRY.items() if f.baked]
+    unknown = sorted(set(factors) - set(names))
+    if unknown:
+        raise FactorError(f"not propeller factors: {', '.join(unknown)}; propeller factors: {', '.join(names)}")
+    return {n: float(factors.get(n, REGISTRY[n].neutral)) for n in names}
+
+
+def apply_factors(base: PropellerTables, factors: Mapping[str, float],
                   J_out: Sequence[float] | np.ndarray | None = None) -> PropellerTables:
-    """Calibrated tables from the BEM ``base`` tables and the factors ``f``.
+    """Calibrated tables from the BEM ``base`` tables and the propeller factors (by name,
+    neutral where not given: :func:`propeller_factor_values`).
 
     Thrust: ``J' = J + K_CT_shift``,
     ``CT'(J) = K_CT_scale * CT(J') * (1 + K_CT_tilt (J' - J_anchor) + K_CT_quad (J' - J_anchor)^2)``
@@ -724,13 +720,16 @@ def apply_factors(base: PropellerTables, f: PropellerFactors,
     ``J_out`` gives the output breakpoints (default: those of ``base``).
     Neutral factors on the base breakpoints return the base values bitwise.
     """
+    f = propeller_factor_values(factors)
     same_J = J_out is None
     Jo = base.J if J_out is None else np.asarray(J_out, dtype=float)
     if not same_J and Jo.shape == base.J.shape and np.array_equal(Jo, base.J):
         same_J = True
-    CT = _apply_curve(base.J, base.CT, Jo, same_J, f.K_CT_shift, f.K_CT_scale, f.K_CT_tilt, f.K_CT_quad, f.J_anchor)
-    CP = _apply_curve(base.J, base.CP, Jo, same_J, f.K_CQ_shift, f.K_CQ_scale, f.K_CQ_tilt, f.K_CQ_quad, f.J_anchor)
+    CT = _apply_curve(base.J, base.CT, Jo, same_J, f["K_CT_shift"], f["K_CT_scale"], f["K_CT_tilt"], f["K_CT_quad"],
+                      f["J_anchor"])
+    CP = _apply_curve(base.J, base.CP, Jo, same_J, f["K_CQ_shift"], f["K_CQ_scale"], f["K_CQ_tilt"], f["K_CQ_quad"],
+                      f["J_anchor"])
     prov = dict(base.provenance)
-    for fld in fields(f):
-        prov[f"factor.{fld.name}"] = repr(float(getattr(f, fld.name)))
+    for name, value in f.items():
+        prov[f"factor.{name}"] = repr(value)
     return PropellerTables(J=Jo, beta75_deg=base.beta75_deg, CT=CT, CP=CP, provenance=prov)

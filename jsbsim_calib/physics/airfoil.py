@@ -31,7 +31,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import CalibError, DataError, GeometryError, Problem, raise_if
+from ..errors import CalibError, DataError, GeometryError, Problem, raise_if
 
 __all__ = [
     "AIRFOIL_DIR",
@@ -56,7 +56,7 @@ __all__ = [
 DEFAULT_REYNOLDS: tuple[float, ...] = (0.5e6, 1e6, 2e6, 3e6, 5e6, 8e6, 12e6)
 
 #: Folder of the stored polar files in the repository (``<repo>/airfoils``).
-AIRFOIL_DIR: Path = Path(__file__).resolve().parents[1] / "airfoils"
+AIRFOIL_DIR: Path = Path(__file__).resolve().parents[2] / "airfoils"
 
 #: The airfoils stored in :data:`AIRFOIL_DIR` and what they stand for. The text is written
 #: into the ``usage`` line of each file's header by :func:`compute_airfoil`.

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..atmosphere import density, isa_pressure, isa_temperature, viscosity
 from ..geometry import AircraftGeometry
-from ..units import FT, G0
+from ...units import FT, G0
 from . import body
 from .lifting_line import freestream_dir, influence
 from .sections import dcm_ddelta, eta_deflection, profile_drag_increment

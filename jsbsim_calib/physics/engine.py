@@ -24,13 +24,14 @@ efficiency with sqrt(T/T_std) because FGPiston's air flow alone scales with 1/T.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import brentq
 
+from ..units import FT, HP, IN, INHG, P0, T0
+from .atmosphere import isa_pressure, isa_temperature, pressure_altitude
 from .geometry import EngineSpec
-from .units import FT, HP, IN, INHG, P0, T0
 
 R_AIR_JSB = 287.3              # [J/(kg K)] FGPiston's gas constant
 FAR_STOICH_INV = 14.7
@@ -101,7 +102,6 @@ def poh_mixture(p_amb_pa: float, *, climb: bool = False, full_rich_below_m: floa
     Climb: full rich below ``full_rich_below_m`` pressure altitude, leaned for maximum RPM
     (best power) above. Cruise: best power. Capped at 1.0 (FGPiston's full-rich lever).
     """
-    from .atmosphere import pressure_altitude
     rich = climb and float(pressure_altitude(p_amb_pa)) < full_rich_below_m
     return min(1.0, mixture_for_far(FAR_FULL_RICH if rich else FAR_BEST_POWER, p_amb_pa))
 
@@ -160,7 +160,6 @@ def design_piston(spec: EngineSpec, name: str) -> PistonParams:
     rated_hp = spec.max_power_w / HP
 
     def with_scale(s, ve):
-        from dataclasses import replace
         return replace(base, fmep_static_pa=46500.0 * s, fmep_dynamic_pa_per_mps=18400.0 * s,
                        volumetric_efficiency=ve)
 
@@ -178,7 +177,6 @@ def design_piston(spec: EngineSpec, name: str) -> PistonParams:
 
 def rated_check(p: PistonParams, altitude_m: float = 0.0) -> float:
     """Full-throttle power [hp] at rated RPM, ISA, best-power mixture (design check)."""
-    from .atmosphere import isa_pressure, isa_temperature
     pa = float(isa_pressure(altitude_m))
     return piston_steady_state(p, p_amb_pa=pa, t_amb_k=float(isa_temperature(altitude_m)), rpm=p.max_rpm,
                                mixture=min(1.0, mixture_for_far(FAR_BEST_POWER, pa)))["hp"]

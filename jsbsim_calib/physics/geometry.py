@@ -16,8 +16,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .errors import GeometryError, Problem
-from .units import UNITS
+from ..errors import GeometryError, Problem
+from ..units import UNITS
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -230,6 +230,11 @@ class Operations:
     poh_fuel_fraction: float       # [-]
     asi_kias_kt: np.ndarray        # [kt]
     asi_kcas_kt: np.ndarray        # [kt]
+
+    @property
+    def airspeed_calibration(self) -> tuple[np.ndarray, np.ndarray]:
+        """The airspeed-calibration table: (KIAS points, KCAS points) [kt], flaps up."""
+        return self.asi_kias_kt, self.asi_kcas_kt
 
 
 @dataclass(frozen=True)
@@ -450,6 +455,138 @@ def _vec3(r: _Reader, where: str, dim: str = "length") -> np.ndarray:
     return r.arr(where, dim, n=3)
 
 
+def _propeller(r: _Reader, known: set[str] | None) -> PropellerSpec:
+    pitch = r.qty("propeller.pitch", "length", required=False, default=float("nan"))
+    cs = r.raw("propeller.constant_speed", required=False)
+    prop = PropellerSpec(
+        model=r.text("propeller.model", default="propeller"),
+        diameter_m=r.qty("propeller.diameter", "length", positive=True),
+        blades=int(r.number("propeller.blades", lo=1, hi=8)),
+        hub_radius_m=r.qty("propeller.hub_radius", "length", positive=True),
+        airfoil=r.text("propeller.airfoil"),
+        chord_max_m=r.qty("propeller.chord_max", "length", positive=True),
+        chord_tip_m=r.qty("propeller.chord_tip", "length", positive=True),
+        location_m=_vec3(r, "propeller.location"),
+        sense=int(r.number("propeller.sense", default=1.0)),
+        ixx_kgm2=r.qty("propeller.ixx", "inertia", positive=True),
+        pitch_m=None if math.isnan(pitch) else pitch,
+        constant_speed=cs is not None,
+        min_pitch_deg=math.degrees(r.qty("propeller.constant_speed.min_pitch", "angle")) if cs else 0.0,
+        max_pitch_deg=math.degrees(r.qty("propeller.constant_speed.max_pitch", "angle")) if cs else 0.0,
+        min_rpm=r.number("propeller.constant_speed.min_rpm") if cs else 0.0,
+        max_rpm=r.number("propeller.constant_speed.max_rpm") if cs else 0.0,
+        reference_pitch_deg=math.degrees(r.qty("propeller.constant_speed.reference_pitch", "angle")) if cs else 0.0,
+    )
+    if prop.pitch_m is None and not prop.constant_speed:
+        r.bad("propeller.pitch", "missing (a fixed-pitch propeller needs its geometric pitch; "
+              "a constant-speed one needs a [propeller.constant_speed] table)")
+    if known is not None and prop.airfoil and prop.airfoil not in known:
+        r.bad("propeller.airfoil", f"unknown airfoil '{prop.airfoil}'; stored airfoils: {', '.join(sorted(known))}")
+    return prop
+
+
+def _engine(r: _Reader) -> EngineSpec:
+    eng = EngineSpec(
+        model=r.text("engine.model", default="engine"),
+        max_power_w=r.qty("engine.max_power", "power", positive=True),
+        rated_rpm=r.number("engine.rated_rpm", lo=500, hi=10000),
+        idle_rpm=r.number("engine.idle_rpm", lo=100, hi=3000),
+        displacement_m3=r.qty("engine.displacement", "volume", positive=True),
+        bore_m=r.qty("engine.bore", "length", positive=True),
+        stroke_m=r.qty("engine.stroke", "length", positive=True),
+        cylinders=int(r.number("engine.cylinders", lo=1, hi=18)),
+        compression_ratio=r.number("engine.compression_ratio", lo=4, hi=15),
+        max_map_pa=r.qty("engine.max_manifold_pressure", "pressure", positive=True),
+        min_map_pa=r.qty("engine.min_manifold_pressure", "pressure", positive=True),
+        location_m=_vec3(r, "engine.location"),
+        full_rich_below_m=r.qty("engine.full_rich_below", "length", default=0.0, nonneg=True),
+    )
+    r.text("engine.type", choices=("piston",))
+    return eng
+
+
+def _tanks(r: _Reader) -> tuple[Tank, ...]:
+    tanks = tuple(Tank(r.text(f"fuel.tanks[{i}].name"), _vec3(r, f"fuel.tanks[{i}].location"),
+                       r.qty(f"fuel.tanks[{i}].capacity", "volume", positive=True),
+                       r.qty(f"fuel.tanks[{i}].unusable", "volume", default=0.0, nonneg=True))
+                  for i in range(r.count("fuel", "tanks")))
+    if not tanks:
+        r.bad("fuel.tanks", "missing (at least one [[fuel.tanks]])")
+    return tanks
+
+
+def _mass(r: _Reader) -> MassSpec:
+    stations = tuple(MassStation(r.text(f"mass.stations[{i}].name"), _vec3(r, f"mass.stations[{i}].location"),
+                                 r.qty(f"mass.stations[{i}].weight", "mass", nonneg=True))
+                     for i in range(r.count("mass", "stations")))
+    env_w = r.arr("mass.cg_envelope_weight", "mass", positive=True, increasing=True)
+    return MassSpec(
+        empty_mass_kg=r.qty("mass.empty_weight", "mass", positive=True),
+        empty_cg_m=_vec3(r, "mass.empty_cg"),
+        max_mass_kg=r.qty("mass.max_weight", "mass", positive=True),
+        radius_of_gyration=r.arr("mass.radius_of_gyration", "dimensionless", n=3, positive=True),
+        cg_envelope_mass_kg=env_w,
+        cg_envelope_fwd_m=r.arr("mass.cg_envelope_forward", "length", n=len(env_w)),
+        cg_envelope_aft_m=r.arr("mass.cg_envelope_aft", "length", n=len(env_w)),
+        stations=stations,
+    )
+
+
+def _gear(r: _Reader) -> tuple[GearContact, ...]:
+    gear = []
+    for i in range(r.count("gear", "contacts")):
+        w = f"gear.contacts[{i}]"
+        reb = r.raw(f"{w}.damping_rebound", required=False)
+        gear.append(GearContact(
+            r.text(f"{w}.name"), r.text(f"{w}.type", choices=("BOGEY", "STRUCTURE")), _vec3(r, f"{w}.location"),
+            r.qty(f"{w}.spring", "stiffness", positive=True), r.qty(f"{w}.damping", "damping", nonneg=True),
+            None if reb is None else r.qty(f"{w}.damping_rebound", "damping", nonneg=True),
+            r.qty(f"{w}.steerable", "angle", default=0.0, nonneg=True),
+            r.text(f"{w}.brake_group", default="NONE", choices=("NONE", "LEFT", "RIGHT", "CENTER", "NOSE", "TAIL"))))
+    if not any(g.type == "BOGEY" for g in gear):
+        r.bad("gear.contacts", "needs at least one BOGEY contact (wheel)")
+    return tuple(gear)
+
+
+def _operations(r: _Reader) -> Operations:
+    kias = r.arr("operations.airspeed_calibration_kias", "speed", increasing=True)
+    kcas = r.arr("operations.airspeed_calibration_kcas", "speed", n=len(kias), increasing=True)
+    return Operations(r.qty("operations.poh_cg", "length"),
+                      r.number("operations.poh_fuel_fraction", lo=0.0, hi=1.0),
+                      kias / 0.514444444444, kcas / 0.514444444444)
+
+
+def _data_files(r: _Reader, path: Path) -> tuple[dict[str, Path], Path | None]:
+    """The reference data files ([data]) and the control-travel table, relative to the root."""
+    data_files = {}
+    for kind, rel in (r.raw("data", required=False) or {}).items():
+        if kind not in DATA_KINDS:
+            r.bad(f"data.{kind}", f"unknown data kind; known: {', '.join(DATA_KINDS)}")
+            continue
+        if not isinstance(rel, str):
+            r.bad(f"data.{kind}", "expected a path relative to the repository root")
+            continue
+        pth = path.parent.parent.parent / rel
+        if not pth.is_file():
+            r.bad(f"data.{kind}", f"file not found: {pth}")
+        data_files[kind] = pth
+    travel = r.text("controls.travel_file", required=False)
+    travel_path = (path.parent.parent.parent / travel) if travel else None
+    if travel_path is not None and not travel_path.is_file():
+        r.bad("controls.travel_file", f"file not found: {travel_path}")
+    return data_files, travel_path
+
+
+def _check_consistency(r: _Reader, ref: ReferenceSpec, surfaces: Sequence[LiftingSurface]) -> None:
+    wing = surfaces[0]
+    for s in surfaces:
+        if len(s.y_m) and np.all(np.isfinite(s.y_m)) and s.y_m[0] != 0.0 and not s.vertical:
+            r.bad(f"{s.name}.y", "the first station must be the plane of symmetry (0)")
+    if np.isfinite(ref.span_m) and len(wing.y_m) and np.isfinite(wing.y_m[-1]):
+        if abs(2 * wing.y_m[-1] - ref.span_m) > 0.02 * ref.span_m:
+            r.bad("wing.y", f"tip station gives span {2 * wing.y_m[-1]:.3f} m but reference.span is {ref.span_m:.3f} m")
+
+
 def load_geometry(path: str | Path, airfoil_dirs: Sequence[Path] | None = None) -> AircraftGeometry:
     """Read and validate ``geometry.toml``. Raises GeometryError listing every problem."""
     path = Path(path)
@@ -480,115 +617,16 @@ def load_geometry(path: str | Path, airfoil_dirs: Sequence[Path] | None = None) 
     drag_doc = r.raw("drag", required=False) or {}
     drag = tuple(DragItem(k, r.qty(f"drag.{k}.area", "area", nonneg=True), r.qty(f"drag.{k}.z", "length"))
                  for k in drag_doc)
-
-    pitch = r.qty("propeller.pitch", "length", required=False, default=float("nan"))
-    cs = r.raw("propeller.constant_speed", required=False)
-    prop = PropellerSpec(
-        model=r.text("propeller.model", default="propeller"),
-        diameter_m=r.qty("propeller.diameter", "length", positive=True),
-        blades=int(r.number("propeller.blades", lo=1, hi=8)),
-        hub_radius_m=r.qty("propeller.hub_radius", "length", positive=True),
-        airfoil=r.text("propeller.airfoil"),
-        chord_max_m=r.qty("propeller.chord_max", "length", positive=True),
-        chord_tip_m=r.qty("propeller.chord_tip", "length", positive=True),
-        location_m=_vec3(r, "propeller.location"),
-        sense=int(r.number("propeller.sense", default=1.0)),
-        ixx_kgm2=r.qty("propeller.ixx", "inertia", positive=True),
-        pitch_m=None if math.isnan(pitch) else pitch,
-        constant_speed=cs is not None,
-        min_pitch_deg=math.degrees(r.qty("propeller.constant_speed.min_pitch", "angle")) if cs else 0.0,
-        max_pitch_deg=math.degrees(r.qty("propeller.constant_speed.max_pitch", "angle")) if cs else 0.0,
-        min_rpm=r.number("propeller.constant_speed.min_rpm") if cs else 0.0,
-        max_rpm=r.number("propeller.constant_speed.max_rpm") if cs else 0.0,
-        reference_pitch_deg=math.degrees(r.qty("propeller.constant_speed.reference_pitch", "angle")) if cs else 0.0,
-    )
-    if prop.pitch_m is None and not prop.constant_speed:
-        r.bad("propeller.pitch", "missing (a fixed-pitch propeller needs its geometric pitch; "
-              "a constant-speed one needs a [propeller.constant_speed] table)")
-    if known is not None and prop.airfoil and prop.airfoil not in known:
-        r.bad("propeller.airfoil", f"unknown airfoil '{prop.airfoil}'; stored airfoils: {', '.join(sorted(known))}")
-
-    eng = EngineSpec(
-        model=r.text("engine.model", default="engine"),
-        max_power_w=r.qty("engine.max_power", "power", positive=True),
-        rated_rpm=r.number("engine.rated_rpm", lo=500, hi=10000),
-        idle_rpm=r.number("engine.idle_rpm", lo=100, hi=3000),
-        displacement_m3=r.qty("engine.displacement", "volume", positive=True),
-        bore_m=r.qty("engine.bore", "length", positive=True),
-        stroke_m=r.qty("engine.stroke", "length", positive=True),
-        cylinders=int(r.number("engine.cylinders", lo=1, hi=18)),
-        compression_ratio=r.number("engine.compression_ratio", lo=4, hi=15),
-        max_map_pa=r.qty("engine.max_manifold_pressure", "pressure", positive=True),
-        min_map_pa=r.qty("engine.min_manifold_pressure", "pressure", positive=True),
-        location_m=_vec3(r, "engine.location"),
-        full_rich_below_m=r.qty("engine.full_rich_below", "length", default=0.0, nonneg=True),
-    )
-    r.text("engine.type", choices=("piston",))
-
+    prop = _propeller(r, known)
+    eng = _engine(r)
     fuel_type = r.text("fuel.type", choices=("AVGAS",))
-    tanks = tuple(Tank(r.text(f"fuel.tanks[{i}].name"), _vec3(r, f"fuel.tanks[{i}].location"),
-                       r.qty(f"fuel.tanks[{i}].capacity", "volume", positive=True),
-                       r.qty(f"fuel.tanks[{i}].unusable", "volume", default=0.0, nonneg=True))
-                  for i in range(r.count("fuel", "tanks")))
-    if not tanks:
-        r.bad("fuel.tanks", "missing (at least one [[fuel.tanks]])")
-
-    stations = tuple(MassStation(r.text(f"mass.stations[{i}].name"), _vec3(r, f"mass.stations[{i}].location"),
-                                 r.qty(f"mass.stations[{i}].weight", "mass", nonneg=True))
-                     for i in range(r.count("mass", "stations")))
-    env_w = r.arr("mass.cg_envelope_weight", "mass", positive=True, increasing=True)
-    mass = MassSpec(
-        empty_mass_kg=r.qty("mass.empty_weight", "mass", positive=True),
-        empty_cg_m=_vec3(r, "mass.empty_cg"),
-        max_mass_kg=r.qty("mass.max_weight", "mass", positive=True),
-        radius_of_gyration=r.arr("mass.radius_of_gyration", "dimensionless", n=3, positive=True),
-        cg_envelope_mass_kg=env_w,
-        cg_envelope_fwd_m=r.arr("mass.cg_envelope_forward", "length", n=len(env_w)),
-        cg_envelope_aft_m=r.arr("mass.cg_envelope_aft", "length", n=len(env_w)),
-        stations=stations,
-    )
-    gear = []
-    for i in range(r.count("gear", "contacts")):
-        w = f"gear.contacts[{i}]"
-        reb = r.raw(f"{w}.damping_rebound", required=False)
-        gear.append(GearContact(
-            r.text(f"{w}.name"), r.text(f"{w}.type", choices=("BOGEY", "STRUCTURE")), _vec3(r, f"{w}.location"),
-            r.qty(f"{w}.spring", "stiffness", positive=True), r.qty(f"{w}.damping", "damping", nonneg=True),
-            None if reb is None else r.qty(f"{w}.damping_rebound", "damping", nonneg=True),
-            r.qty(f"{w}.steerable", "angle", default=0.0, nonneg=True),
-            r.text(f"{w}.brake_group", default="NONE", choices=("NONE", "LEFT", "RIGHT", "CENTER", "NOSE", "TAIL"))))
-    if not any(g.type == "BOGEY" for g in gear):
-        r.bad("gear.contacts", "needs at least one BOGEY contact (wheel)")
-    kias = r.arr("operations.airspeed_calibration_kias", "speed", increasing=True)
-    kcas = r.arr("operations.airspeed_calibration_kcas", "speed", n=len(kias), increasing=True)
-    ops = Operations(r.qty("operations.poh_cg", "length"),
-                     r.number("operations.poh_fuel_fraction", lo=0.0, hi=1.0),
-                     kias / 0.514444444444, kcas / 0.514444444444)
-    data_files = {}
-    for kind, rel in (r.raw("data", required=False) or {}).items():
-        if kind not in DATA_KINDS:
-            r.bad(f"data.{kind}", f"unknown data kind; known: {', '.join(DATA_KINDS)}")
-            continue
-        if not isinstance(rel, str):
-            r.bad(f"data.{kind}", "expected a path relative to the repository root")
-            continue
-        pth = path.parent.parent.parent / rel
-        if not pth.is_file():
-            r.bad(f"data.{kind}", f"file not found: {pth}")
-        data_files[kind] = pth
-    travel = r.text("controls.travel_file", required=False)
-    travel_path = (path.parent.parent.parent / travel) if travel else None
-    if travel_path is not None and not travel_path.is_file():
-        r.bad("controls.travel_file", f"file not found: {travel_path}")
-
-    # geometric consistency checks
-    for s in (wing, ht, vt):
-        if len(s.y_m) and np.all(np.isfinite(s.y_m)) and s.y_m[0] != 0.0 and not s.vertical:
-            r.bad(f"{s.name}.y", "the first station must be the plane of symmetry (0)")
-    if np.isfinite(ref.span_m) and len(wing.y_m) and np.isfinite(wing.y_m[-1]):
-        if abs(2 * wing.y_m[-1] - ref.span_m) > 0.02 * ref.span_m:
-            r.bad("wing.y", f"tip station gives span {2 * wing.y_m[-1]:.3f} m but reference.span is {ref.span_m:.3f} m")
+    tanks = _tanks(r)
+    mass = _mass(r)
+    gear = _gear(r)
+    ops = _operations(r)
+    data_files, travel_path = _data_files(r, path)
+    _check_consistency(r, ref, (wing, ht, vt))
     if r.problems:
         raise GeometryError(path, r.problems)
     return AircraftGeometry(name, title, path, ref, wing, ht, vt, fus, drag, prop, eng, fuel_type, tanks, mass,
-                            tuple(gear), ops, travel_path, data_files)
+                            gear, ops, travel_path, data_files)
