@@ -24,7 +24,7 @@ from scipy.optimize import least_squares
 
 from .data import METRICS, Dataset
 from .evaluate import KINDS
-from .factors import FactorSet, stage_factors
+from .factors import FactorSet, step_factors
 from .fdm import Condition, Simulator, TrimResult
 
 FAIL_PENALTY = 20.0          # per failed trim (method eq. 3.33)
@@ -335,7 +335,7 @@ def point_residuals(sim: Simulator, ps: PointSet, metrics: Sequence[str],
     return res, lab, failed
 
 
-STEADY_NAMES = [f.name for f in stage_factors("steady") if f.name != "K_FF"]
+STEADY_NAMES = list(step_factors("steady"))
 
 
 def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: FactorSet | None = None,
@@ -363,7 +363,7 @@ def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: Fact
         r, l, f = point_residuals(sim, kps, ("gph",))
         return np.array(r + [FAIL_PENALTY * f]), l + ["trim failures"]
 
-    ff = fit("fuel flow", ["K_FF"], main.final, ff_residuals, sim=sim, progress=progress)
+    ff = fit("fuel flow", list(step_factors("fuel flow")), main.final, ff_residuals, sim=sim, progress=progress)
     return main, ff
 
 
@@ -402,29 +402,29 @@ FLIGHT_TEST_HOLD = tuple(Residual("snapshot", "all", m) for m in ("pitch_deg", "
     + (Residual("flap_climb", "all", "roc_fpm"),)
 
 TRIM_STEPS: tuple[TrimStep, ...] = (
-    TrimStep("pitch", ("alpha_shift_addl", "K_cm_slope", "K_cm_offset"),
+    TrimStep("pitch", step_factors("pitch"),
              (Residual("snapshot", "clean", "pitch_deg"),),
              "pitching moment (method 3.2.1): pitch attitude of the flaps-up snapshots / 1 deg; the trim "
              "elevator of all snapshots is held (the control step fits it), the POH is not: the lift curve sets "
              "the attitude, and moving it moves the drag tables under the POH points, which the final steady "
              "refit rebalances", (Residual("snapshot", "all", "elevator_deg"),)),
-    TrimStep("control", ("K_de_slope", "K_de_offset", "K_da_slope", "K_da_offset", "K_dr_slope", "K_dr_offset"),
+    TrimStep("control", step_factors("control"),
              (Residual("snapshot", "clean", "elevator_deg"), Residual("snapshot", "all", "aileron_deg"),
               Residual("snapshot", "all", "rudder_deg")),
              "control effectiveness (method 3.2.2): trim surfaces / 1 deg; the elevator of flaps-down "
              "snapshots waits for the flap step (the flap moment is not fitted yet)", POH_HOLD),
-    TrimStep("pfactor", ("K_PF", "K_dr_slope", "K_dr_offset"), (Residual("snapshot", "all", "rudder_deg"),),
+    TrimStep("pfactor", step_factors("pfactor"), (Residual("snapshot", "all", "rudder_deg"),),
              "P-factor (method 3.2.2, eq. 3.41): rudder of all snapshots / 1 deg; the rudder factors are "
              "refitted with K_PF (the control step could not see the thrust-dependent yaw and set them for it)",
              POH_HOLD),
-    TrimStep("flaps", ("K_dcd0_flaps", "K_dcm_flaps", "K_dcl_flaps"),
+    TrimStep("flaps", step_factors("flaps"),
              (Residual("flap_climb", "all", "roc_fpm"), Residual("snapshot", "flaps", "pitch_deg"),
               Residual("snapshot", "flaps", "elevator_deg")),
              "flap aerodynamics (method 3.2.3): flaps-down climb rate / 100 fpm and pitch / 1 deg, plus the "
              "flaps-down trim elevator / 1 deg (where the flap moment shows most) and a flap-lift factor "
              "(the flaps-down attitude is set by the flap lift, which the method's two factors cannot move)",
              POH_HOLD),
-    TrimStep("steady refit", tuple(STEADY_NAMES) + ("K_FF",),
+    TrimStep("steady refit", step_factors("steady refit"),
              (Residual("poh_climb", "subset", "roc_fpm"), Residual("poh_cruise", "subset", "pct_power"),
               Residual("poh_cruise", "subset", "rpm"), Residual("poh_cruise", "subset", "gph")),
              "stage 1 again from its values, the flight-test factors frozen: the trims bring drag the POH fit "

@@ -40,7 +40,7 @@ from .data import METRICS, Dataset
 from .diagnose import MetricDiagnosis, diagnose
 from .effects import Effect, library
 from .evaluate import KINDS, Evaluation, evaluate_dataset
-from .factors import FactorSet
+from .factors import FactorSet, levers
 from .fdm import Simulator
 
 HOLDOUT = 4              # every 4th point is held out
@@ -164,14 +164,11 @@ def _by_metric(r: np.ndarray, labels: list[str]) -> dict[str, float]:
     return out
 
 
-# The stage-2a factors that act on each measured metric: after an effect is added they are
-# refitted with it, since they were fitted without it and may have compensated for it.
-METRIC_FACTORS = {
-    "pitch_deg": ("alpha_shift_addl",),
-    "elevator_deg": ("K_de_slope", "K_de_offset"),
-    "aileron_deg": ("K_da_slope", "K_da_offset"),
-    "rudder_deg": ("K_dr_slope", "K_dr_offset"),
-}
+# After an effect is added it is refitted with the levers of the metrics it moves (the factors
+# of these stage-2a steps that move one metric alone): they were fitted without it and may have
+# compensated for it. A factor that moves two metrics (the wing moment moves elevator and
+# pitch) stays: refitting it for one would spoil the other.
+COMPANION_STEPS = ("pitch", "control")
 
 
 def companion_factors(effect: Effect) -> list[str]:
@@ -179,7 +176,7 @@ def companion_factors(effect: Effect) -> list[str]:
     effect duplicates, see the effect file's ``same_as``)."""
     out = []
     for m in effect.affects:
-        out += [f for f in METRIC_FACTORS.get(m, ()) if f not in out and f not in effect.same_as]
+        out += [f for f in levers(m, COMPANION_STEPS) if f not in out and f not in effect.same_as]
     return out
 
 

@@ -18,7 +18,7 @@ Two conventions let effects change what is *measured* rather than what flies:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -30,17 +30,6 @@ LIBRARY_DIR = Path(__file__).resolve().parent / "effects"
 
 
 @dataclass(frozen=True)
-class EffectFactor:
-    name: str               # short name within the effect (K, K_alpha, ...)
-    property: str           # JSBSim property
-    neutral: float
-    lower: float
-    upper: float
-    unit: str
-    doc: str
-
-
-@dataclass(frozen=True)
 class Effect:
     name: str
     description: str
@@ -48,23 +37,24 @@ class Effect:
     same_as: tuple[str, ...]        # calibration factors of the same form (held, not refitted, with it)
     regressor: str                  # the state it grows with (for reports)
     note: str                       # the physics, from the file's comment
-    factors: tuple[EffectFactor, ...]
+    factors: tuple[Factor, ...]     # short names within the effect (K, K_alpha, ...); step "effect"
     path: Path
     spec: dict                      # parsed file (xmlmodel.read_effect)
 
-    def label(self, f: EffectFactor) -> str:
+    def label(self, f: Factor) -> str:
         return f"{self.name}.{f.name}"
 
     def as_factors(self) -> dict[str, Factor]:
         """The effect's factors as fit parameters (``effect.K`` names)."""
-        return {self.label(f): Factor(self.label(f), f.property, f.neutral, f.lower, f.upper, f.unit, "effect",
-                                      self.description, f.doc) for f in self.factors}
+        return {self.label(f): replace(f, name=self.label(f)) for f in self.factors}
 
 
 def load_effect(path: Path) -> Effect:
     spec = xmlmodel.read_effect(path)
+    factors = tuple(Factor(f["name"], f["property"], f["neutral"], f["lower"], f["upper"], f["unit"], ("effect",),
+                           spec["affects"], spec["description"], f["doc"]) for f in spec["factors"])
     return Effect(spec["name"], spec["description"], spec["affects"], spec["same_as"], spec["regressor"], spec["note"],
-                  tuple(EffectFactor(**f) for f in spec["factors"]), Path(path), spec)
+                  factors, Path(path), spec)
 
 
 @lru_cache(maxsize=None)

@@ -5,8 +5,17 @@ XML with its neutral value, bounds and units beside it. The aircraft functions m
 or add it where the method puts it. Propeller factors (``baked=True``) are applied to the
 propeller tables when they are written, and recorded in the propeller file.
 
+Each factor also declares the fit steps that set it (``steps``) and the measured metrics it
+moves (``moves``): the stages, the close-loop and the reports derive every set of factors
+they need from these (:func:`step_factors`, :func:`set_in`, :func:`levers`, ``baked``), so
+adding a factor is adding its record here (and its term where it acts, in the aircraft's
+functions, :mod:`jsbsim_calib.jsbsim.equations`). The factors of the effect library are
+:class:`Factor` records too (step ``effect``).
+
 ``FactorSet`` holds values; it converts to and from the optimizer's vector in one place,
 normalizing each factor to [-1, 1] over its bounds, and refuses out-of-bounds values.
+
+A leaf module (numpy and the errors only): every floor of the package may use it.
 """
 from __future__ import annotations
 
@@ -26,7 +35,8 @@ class Factor:
     lower: float
     upper: float
     unit: str              # '-' for dimensionless
-    stage: str             # steady | pitch | control | pfactor | flaps | damping
+    steps: tuple[str, ...]  # the fit steps that set it, in the order they run (see STEPS)
+    moves: tuple[str, ...]  # the measured metrics it moves (names of jsbsim_calib.data.schemas.METRICS)
     applies_to: str        # where the method puts it
     doc: str               # one line: what it does and which way it moves the result
     baked: bool = False    # True: applied to the propeller tables at generation
@@ -39,94 +49,136 @@ class Factor:
         return self.lower + 0.5 * (u + 1.0) * (self.upper - self.lower)
 
 
-def _f(name, neutral, lower, upper, unit, stage, applies_to, doc, baked=False, prop=None):
+def _f(name, neutral, lower, upper, unit, steps, moves, applies_to, doc, baked=False):
     suffix = {"deg": "-deg", "m2/s": "-m2_sec"}.get(unit, "")
-    return Factor(name, prop or f"calibration/{name}{suffix}", neutral, lower, upper, unit, stage, applies_to, doc,
+    return Factor(name, f"calibration/{name}{suffix}", neutral, lower, upper, unit, steps, moves, applies_to, doc,
                   baked)
+
+
+# The fit steps, in the order the calibration runs them: stage 1 (POH) fits the aerodynamic,
+# propeller and engine factors, then fuel flow; stage 2a (flight-test trims) runs the method's
+# steps and refits stage 1 last (jsbsim_calib.calibration.steady and .trims declare what each
+# step fits them to). A factor lists the steps that set it; "effect" marks the factors of the
+# effect library (jsbsim_calib.calibration.effects).
+STEPS = ("steady", "fuel flow", "pitch", "control", "pfactor", "flaps", "steady refit", "effect")
+STAGE1 = ("steady", "steady refit")          # steps of the 16 coupled stage-1 factors
+POH = ("roc_fpm", "pct_power", "rpm")        # what the stage-1 factors move
 
 
 FACTORS: tuple[Factor, ...] = (
     # --- steady stage (method Table 3.1, eq. 3.1-3.19)
-    _f("alpha_shift", 0.0, -4.0, 4.0, "deg", "steady", "wing strips: section angle (eq. 3.1-3.2)",
+    _f("alpha_shift", 0.0, -4.0, 4.0, "deg", STAGE1, POH,
+       "wing strips: section angle (eq. 3.1-3.2)",
        "adds to the wing section angle before the polar lookup: + gives more lift at the same alpha"),
-    _f("K_cl_slope", 1.0, 0.7, 1.3, "-", "steady", "wing strips: lift in wind axes (eq. 3.6)",
+    _f("K_cl_slope", 1.0, 0.7, 1.3, "-", STAGE1, POH,
+       "wing strips: lift in wind axes (eq. 3.6)",
        "scales the wing lift: > 1 steeper lift curve, lower trim alpha"),
-    _f("K_cl_offset", 0.0, -0.3, 0.3, "-", "steady", "wing strips: lift in wind axes (eq. 3.6)",
+    _f("K_cl_offset", 0.0, -0.3, 0.3, "-", STAGE1, POH,
+       "wing strips: lift in wind axes (eq. 3.6)",
        "adds to the section lift of every wing strip: + shifts zero lift to lower alpha"),
-    _f("K_cd0_slope", 1.0, 0.7, 1.3, "-", "steady", "profile drag of all lifting surfaces and the fuselage group (eq. 3.7-3.8)",
+    _f("K_cd0_slope", 1.0, 0.7, 1.3, "-", STAGE1, POH,
+       "profile drag of all lifting surfaces and the fuselage group (eq. 3.7-3.8)",
        "scales parasitic drag: > 1 more drag, higher cruise power and RPM, less climb"),
-    _f("K_cd0_offset", 0.0, -0.05, 0.05, "-", "steady", "profile drag of all lifting surfaces and the fuselage group (eq. 3.7-3.8)",
+    _f("K_cd0_offset", 0.0, -0.05, 0.05, "-", STAGE1, POH,
+       "profile drag of all lifting surfaces and the fuselage group (eq. 3.7-3.8)",
        "adds to every strip's profile drag and to the fuselage drag: + more drag"),
-    _f("K_cdi", 1.0, 0.7, 1.3, "-", "steady", "induced drag of all strips (eq. 3.9)",
+    _f("K_cdi", 1.0, 0.7, 1.3, "-", STAGE1, POH,
+       "induced drag of all strips (eq. 3.9)",
        "scales induced drag (1/Oswald factor): > 1 more drag at high lift, less climb"),
-    _f("J_anchor", 0.6, 0.45, 0.75, "-", "steady", "propeller tables: anchor of the tilt and quadratic terms (eq. 3.16-3.17)",
+    _f("J_anchor", 0.6, 0.45, 0.75, "-", STAGE1, POH,
+       "propeller tables: anchor of the tilt and quadratic terms (eq. 3.16-3.17)",
        "advance ratio about which the CT/CQ tilt and curvature act", baked=True),
-    _f("K_CT_shift", 0.0, -0.1, 0.1, "-", "steady", "propeller C_THRUST: advance-ratio shift (eq. 3.13)",
+    _f("K_CT_shift", 0.0, -0.1, 0.1, "-", STAGE1, POH,
+       "propeller C_THRUST: advance-ratio shift (eq. 3.13)",
        "reads the thrust curve at J + shift: + less thrust (curve falls with J)", baked=True),
-    _f("K_CT_scale", 1.0, 0.8, 1.2, "-", "steady", "propeller C_THRUST (eq. 3.16)",
+    _f("K_CT_scale", 1.0, 0.8, 1.2, "-", STAGE1, POH,
+       "propeller C_THRUST (eq. 3.16)",
        "scales thrust coefficient: > 1 more thrust, better climb, lower cruise RPM", baked=True),
-    _f("K_CT_tilt", 0.0, -0.1, 0.1, "-", "steady", "propeller C_THRUST (eq. 3.16)",
+    _f("K_CT_tilt", 0.0, -0.1, 0.1, "-", STAGE1, POH,
+       "propeller C_THRUST (eq. 3.16)",
        "linear change of thrust with J about J_anchor: + more thrust at high J", baked=True),
-    _f("K_CT_quad", 0.0, -0.2, 0.2, "-", "steady", "propeller C_THRUST (eq. 3.16)",
+    _f("K_CT_quad", 0.0, -0.2, 0.2, "-", STAGE1, POH,
+       "propeller C_THRUST (eq. 3.16)",
        "quadratic change of thrust about J_anchor: + more thrust away from the anchor", baked=True),
-    _f("K_CQ_shift", 0.0, -0.1, 0.1, "-", "steady", "propeller C_POWER (= 2 pi C_Q): advance-ratio shift (eq. 3.13)",
+    _f("K_CQ_shift", 0.0, -0.1, 0.1, "-", STAGE1, POH,
+       "propeller C_POWER (= 2 pi C_Q): advance-ratio shift (eq. 3.13)",
        "reads the torque curve at J + shift: + less torque, higher RPM", baked=True),
-    _f("K_CQ_scale", 1.0, 0.8, 1.2, "-", "steady", "propeller C_POWER (eq. 3.17)",
+    _f("K_CQ_scale", 1.0, 0.8, 1.2, "-", STAGE1, POH,
+       "propeller C_POWER (eq. 3.17)",
        "scales torque/power coefficient: > 1 more power absorbed, lower RPM", baked=True),
-    _f("K_CQ_tilt", 0.0, -0.1, 0.1, "-", "steady", "propeller C_POWER (eq. 3.17)",
+    _f("K_CQ_tilt", 0.0, -0.1, 0.1, "-", STAGE1, POH,
+       "propeller C_POWER (eq. 3.17)",
        "linear change of torque with J about J_anchor", baked=True),
-    _f("K_CQ_quad", 0.0, -0.2, 0.2, "-", "steady", "propeller C_POWER (eq. 3.17)",
+    _f("K_CQ_quad", 0.0, -0.2, 0.2, "-", STAGE1, POH,
+       "propeller C_POWER (eq. 3.17)",
        "quadratic change of torque about J_anchor", baked=True),
-    _f("K_HP", 1.0, 0.8, 1.2, "-", "steady", "engine power (eq. 3.18): volumetric efficiency",
+    _f("K_HP", 1.0, 0.8, 1.2, "-", STAGE1, POH,
+       "engine power (eq. 3.18): volumetric efficiency",
        "scales engine air flow and so power: > 1 more full-throttle power, better climb"),
-    _f("K_FF", 1.0, 0.8, 1.2, "-", "steady", "engine fuel flow at constant power (eq. 3.19)",
+    _f("K_FF", 1.0, 0.8, 1.2, "-", ("fuel flow", "steady refit"), ("gph",),
+       "engine fuel flow at constant power (eq. 3.19)",
        "scales fuel flow: > 1 more fuel burnt for the same power"),
     # --- flight-test stage: pitching moment (Table 3.4, eq. 3.27-3.30)
-    _f("alpha_shift_addl", 0.0, -4.0, 4.0, "deg", "pitch", "wing strips: section angle, added to alpha_shift (eq. 3.27)",
+    _f("alpha_shift_addl", 0.0, -4.0, 4.0, "deg", ("pitch",), ("pitch_deg",),
+       "wing strips: section angle, added to alpha_shift (eq. 3.27)",
        "additional wing section-angle shift: + lowers trim pitch attitude"),
-    _f("K_cm_slope", 1.0, 0.2, 3.0, "-", "pitch", "wing strips: section pitching moment (eq. 3.30)",
+    _f("K_cm_slope", 1.0, 0.2, 3.0, "-", ("pitch",), ("elevator_deg", "pitch_deg"),
+       "wing strips: section pitching moment (eq. 3.30)",
        "scales the wing section pitching moment (nose-down camber moment)"),
-    _f("K_cm_offset", 0.0, -0.5, 0.5, "-", "pitch", "wing strips: section pitching moment (eq. 3.30)",
+    _f("K_cm_offset", 0.0, -0.5, 0.5, "-", ("pitch",), ("elevator_deg", "pitch_deg"),
+       "wing strips: section pitching moment (eq. 3.30)",
        "adds to every wing strip's section moment: + nose-up, elevator trims further down"),
     # --- control effectiveness (Table 3.5, eq. 3.35-3.38)
-    _f("K_de_slope", 1.0, 0.5, 3.0, "-", "control", "elevator circulation (eq. 3.36)",
+    _f("K_de_slope", 1.0, 0.5, 3.0, "-", ("control",), ("elevator_deg",),
+       "elevator circulation (eq. 3.36)",
        "scales elevator effectiveness: > 1 smaller trim elevator"),
-    _f("K_de_offset", 0.0, -5.0, 5.0, "m2/s", "control", "elevator circulation (eq. 3.36)",
+    _f("K_de_offset", 0.0, -5.0, 5.0, "m2/s", ("control",), ("elevator_deg",),
+       "elevator circulation (eq. 3.36)",
        "adds circulation on the elevator span: + tail lift up (nose down), falls with speed"),
-    _f("K_da_slope", 1.0, 0.5, 3.0, "-", "control", "aileron circulation (eq. 3.36)",
+    _f("K_da_slope", 1.0, 0.5, 3.0, "-", ("control",), ("aileron_deg",),
+       "aileron circulation (eq. 3.36)",
        "scales aileron effectiveness: > 1 smaller trim aileron"),
-    _f("K_da_offset", 0.0, -5.0, 5.0, "m2/s", "control", "aileron circulation (eq. 3.36)",
+    _f("K_da_offset", 0.0, -5.0, 5.0, "m2/s", ("control",), ("aileron_deg",),
+       "aileron circulation (eq. 3.36)",
        "adds antisymmetric aileron circulation: + right-roll moment"),
-    _f("K_dr_slope", 1.0, 0.5, 3.0, "-", "control", "rudder circulation (eq. 3.36)",
+    _f("K_dr_slope", 1.0, 0.5, 3.0, "-", ("control", "pfactor"), ("rudder_deg",),
+       "rudder circulation (eq. 3.36)",
        "scales rudder effectiveness: > 1 smaller trim rudder"),
-    _f("K_dr_offset", 0.0, -5.0, 5.0, "m2/s", "control", "rudder circulation (eq. 3.36)",
+    _f("K_dr_offset", 0.0, -5.0, 5.0, "m2/s", ("control", "pfactor"), ("rudder_deg",),
+       "rudder circulation (eq. 3.36)",
        "adds fin circulation as a positive (trailing edge left) rudder does: nose-left moment"),
     # The method bounds K_PF to [0, 0.5] for its form applied on every strip; applied once as
     # eq. 3.38 the C172 flight-test climbs need about 5 (the term also stands for the
     # slipstream swirl on the fin, which the strip model lacks, and trades with K_dr_slope):
     # bound widened to 5, measured, see README.
-    _f("K_PF", 0.0, 0.0, 5.0, "-", "pfactor", "yawing moment N = -K_PF T (D/2) sin(alpha) (eq. 3.38)",
+    _f("K_PF", 0.0, 0.0, 5.0, "-", ("pfactor",), ("rudder_deg", "aileron_deg"),
+       "yawing moment N = -K_PF T (D/2) sin(alpha) (eq. 3.38)",
        "P-factor: + nose-left yaw growing with thrust and alpha (right rudder in climbs)"),
     # --- flaps (Table 3.6, eq. 3.42-3.45)
-    _f("K_dcd0_flaps", 0.0, -2.0, 2.0, "-", "flaps", "flap strips: profile drag per flap degree (eq. 3.42)",
+    _f("K_dcd0_flaps", 0.0, -2.0, 2.0, "-", ("flaps",), ("roc_fpm",),
+       "flap strips: profile drag per flap degree (eq. 3.42)",
        "adds K times the per-degree flap profile-drag estimate: + more flaps-down drag"),
-    _f("K_dcm_flaps", 0.0, -3.0, 3.0, "-", "flaps", "flap strips: section moment per flap degree (eq. 3.44)",
+    _f("K_dcm_flaps", 0.0, -3.0, 3.0, "-", ("flaps",), ("elevator_deg",),
+       "flap strips: section moment per flap degree (eq. 3.44)",
        "adds K times the per-degree flap moment estimate: + more nose-down with flaps"),
     # not in the method: its flap step cannot move the flaps-down trim attitude, which is set
     # by the flap lift increment (see the README)
-    _f("K_dcl_flaps", 1.0, 0.5, 1.5, "-", "flaps", "flap strips: lift increment of the flap (strip theory)",
+    _f("K_dcl_flaps", 1.0, 0.5, 1.5, "-", ("flaps",), ("pitch_deg", "roc_fpm"),
+       "flap strips: lift increment of the flap (strip theory)",
        "scales the flap lift increment: < 1 less lift from the flaps, higher flaps-down pitch attitude"),
     # --- damping (Table 3.7, eq. 3.48-3.56)
-    _f("K_Clp", 0.0, -0.02, 0.02, "-", "damping", "rolling moment -K p b/(2V) qbar S b (eq. 3.48)",
+    _f("K_Clp", 0.0, -0.02, 0.02, "-", (), (),
+       "rolling moment -K p b/(2V) qbar S b (eq. 3.48)",
        "extra roll damping: + more damping"),
-    _f("K_Cmq", 0.0, -0.1, 0.1, "-", "damping", "pitching moment -K q c/(2V) qbar S c (eq. 3.51)",
+    _f("K_Cmq", 0.0, -0.1, 0.1, "-", (), (),
+       "pitching moment -K q c/(2V) qbar S c (eq. 3.51)",
        "extra pitch damping: + more damping"),
-    _f("K_Cnr", 0.0, -0.02, 0.02, "-", "damping", "yawing moment -K r b/(2V) qbar S b (eq. 3.54)",
+    _f("K_Cnr", 0.0, -0.02, 0.02, "-", (), (),
+       "yawing moment -K r b/(2V) qbar S b (eq. 3.54)",
        "extra yaw damping: + more damping"),
 )
 
 REGISTRY: dict[str, Factor] = {f.name: f for f in FACTORS}
-STAGES = ("steady", "pitch", "control", "pfactor", "flaps", "damping")
 PROPELLER_FACTORS = tuple(f.name for f in FACTORS if f.baked)
 
 
@@ -145,10 +197,24 @@ def neutral_values() -> dict[str, float]:
     return {f.name: f.neutral for f in FACTORS}
 
 
-def stage_factors(stage: str) -> tuple[Factor, ...]:
-    if stage not in STAGES:
-        raise FactorError(f"unknown stage '{stage}'; stages: {', '.join(STAGES)}")
-    return tuple(f for f in FACTORS if f.stage == stage)
+def step_factors(step: str) -> tuple[str, ...]:
+    """The factors a fit step sets, in the order it fits them: first those it sets for the
+    first time, then the ones it refits (each group in registry order)."""
+    if step not in STEPS:
+        raise FactorError(f"unknown step '{step}'; steps: {', '.join(STEPS)}")
+    mine = [f for f in FACTORS if step in f.steps]
+    return tuple(f.name for f in sorted(mine, key=lambda f: f.steps.index(step) > 0))
+
+
+def set_in(steps: Sequence[str]) -> tuple[str, ...]:
+    """The factors that any of ``steps`` sets, in registry order."""
+    return tuple(f.name for f in FACTORS if set(f.steps) & set(steps))
+
+
+def levers(metric: str, steps: Sequence[str]) -> tuple[str, ...]:
+    """The factors of ``steps`` that move ``metric`` and nothing else the data measure (the
+    metric's own levers), in registry order."""
+    return tuple(f.name for f in FACTORS if set(f.steps) & set(steps) and f.moves == (metric,))
 
 
 class FactorSet(Mapping[str, float]):

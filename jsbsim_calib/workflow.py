@@ -25,7 +25,7 @@ from .calibrate import TRIM_STEPS, FitResult, TrimStep, stage1_subset, steady_st
 from .data import METRICS, Dataset, load_dataset
 from .errors import ModelError
 from .evaluate import Evaluation, PointResult, evaluate_dataset, summarize
-from .factors import FactorSet
+from .factors import FactorSet, set_in
 from .fdm import Simulator
 from .flighttest import QuirkWarning
 from .physics.atmosphere import isa_temperature
@@ -211,8 +211,8 @@ class TrimsCalibration:
 
 def steady_factors(factors: FactorSet) -> FactorSet:
     """Stage-1 factors kept, every later factor neutral: where stage 2a starts."""
-    from .factors import REGISTRY
-    return FactorSet({k: v for k, v in factors.items() if REGISTRY[k].stage == "steady"})
+    stage1 = set_in(("steady", "fuel flow"))
+    return FactorSet({k: v for k, v in factors.items() if k in stage1})
 
 
 def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps: tuple[TrimStep, ...] = TRIM_STEPS,
