@@ -25,7 +25,8 @@ from scipy.optimize import least_squares
 from .data import METRICS, Dataset
 from .evaluate import KINDS
 from .factors import FactorSet, step_factors
-from .fdm import Condition, Simulator, TrimResult
+from .jsbsim.condition import Condition, TrimResult
+from .jsbsim.simulator import Simulator
 
 FAIL_PENALTY = 20.0          # per failed trim (method eq. 3.33)
 THROTTLE_TOL = 0.05          # throttle above 1 per 0.05 (eq. 3.32)

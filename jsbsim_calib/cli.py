@@ -29,7 +29,7 @@ def _progress(quiet: bool):
 
 
 def cmd_generate(a) -> int:
-    from .build import generate
+    from .generate import generate
     g = generate(a.aircraft, Path(a.root), baseline=a.baseline, progress=_progress(a.quiet))
     for p in g.files:
         print(p)
@@ -37,10 +37,10 @@ def cmd_generate(a) -> int:
 
 
 def _calibrate_steady(a, root: Path, say):
-    from .build import AircraftPaths, read_calibration
+    from .jsbsim.product import AircraftPaths, read_calibration, write_calibrated
     from .evaluate import format_summary
     from .report import write_steady_report
-    from .workflow import run_steady, write_product
+    from .workflow import run_steady
     start = read_calibration(AircraftPaths(root, a.aircraft)) if a.start == "current" else None
     res = run_steady(root, a.aircraft, start=start, progress=say)
     print(res.fit.report())
@@ -55,7 +55,7 @@ def _calibrate_steady(a, root: Path, say):
             print(format_summary(res.thesis[kind]))
     print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims")
     if not a.no_write:
-        files = write_product(root, a.aircraft, res.factors, "steady", res.summary())
+        files = write_calibrated(root, a.aircraft, res.factors, "steady", res.summary())
         print("written: " + ", ".join(str(f) for f in files))
     print(f"report: {write_steady_report(res, root, Path(a.report_dir) / a.aircraft)}")
     return res.factors, {k: e.summary() for k, e in res.calibrated.items()}
@@ -64,7 +64,8 @@ def _calibrate_steady(a, root: Path, say):
 def _calibrate_trims(a, root: Path, say, start=None):
     from .evaluate import format_summary
     from .report import write_trims_report
-    from .workflow import run_trims, steady_factors, write_product
+    from .jsbsim.product import write_calibrated
+    from .workflow import run_trims, steady_factors
     res = run_trims(root, a.aircraft, skip=tuple(a.skip or ()), progress=say,
                     start=None if start is None else steady_factors(start))
     for r in res.steps:
@@ -81,7 +82,7 @@ def _calibrate_trims(a, root: Path, say, start=None):
         print(format_summary(res.poh_after[kind].summary()))
     print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims")
     if not a.no_write:
-        files = write_product(root, a.aircraft, res.factors, "trims", res.summary())
+        files = write_calibrated(root, a.aircraft, res.factors, "trims", res.summary())
         print("written: " + ", ".join(str(f) for f in files))
     print(f"report: {write_trims_report(res, Path(a.report_dir) / a.aircraft)}")
     return res.factors, {**{k: e.summary() for k, e in res.poh_after.items()},
@@ -89,7 +90,7 @@ def _calibrate_trims(a, root: Path, say, start=None):
 
 
 def cmd_calibrate(a) -> int:
-    from .build import load_aircraft_geometry
+    from .jsbsim.product import load_aircraft_geometry
     from .verdicts import format_verdicts, verdicts
     root = Path(a.root)
     say = _progress(a.quiet)
@@ -114,7 +115,7 @@ def cmd_calibrate(a) -> int:
 
 def cmd_evaluate(a) -> int:
     from .evaluate import evaluate_dataset
-    from .fdm import Simulator
+    from .jsbsim.simulator import Simulator
     from .workflow import load_data_for
     with Simulator(Path(a.root), a.aircraft, baseline=a.baseline) as sim:
         ds = load_data_for(sim, a.data)
@@ -137,7 +138,7 @@ def cmd_evaluate(a) -> int:
 
 
 def cmd_synth(a) -> int:
-    from .fdm import Simulator
+    from .jsbsim.simulator import Simulator
     from .synth import synthesize, write_csv
     with Simulator.from_dir(Path(a.truth), Path(a.root)) as truth:
         rows, skipped = synthesize(truth, n=a.points, seed=a.seed, noise=a.noise, progress=_progress(a.quiet))
@@ -177,13 +178,13 @@ def cmd_close_loop(a) -> int:
 
 
 def cmd_check(a) -> int:
-    from .fdm import Simulator
-    from .stability import format_report, report
+    from .jsbsim.simulator import Simulator
+    from .jsbsim.probes import format_report, report
     with Simulator(Path(a.root), a.aircraft, baseline=a.baseline) as sim:
         rep = report(sim)
     print(format_report(rep))
     if a.json:
-        Path(a.json).write_text(json.dumps(rep, indent=2) + "\n")
+        Path(a.json).write_text(json.dumps(rep.as_dict(), indent=2) + "\n")
         print(f"json: {a.json}")
     return 0
 

@@ -41,7 +41,8 @@ from .diagnose import MetricDiagnosis, diagnose
 from .effects import Effect, library
 from .evaluate import KINDS, Evaluation, evaluate_dataset
 from .factors import FactorSet, levers
-from .fdm import Simulator
+from .jsbsim.product import AircraftPaths, write_derived
+from .jsbsim.simulator import Simulator
 
 HOLDOUT = 4              # every 4th point is held out
 MIN_EVIDENCE = 10.0      # BIC decrease for "very strong" evidence (Kass & Raftery)
@@ -368,16 +369,5 @@ def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None
 def write_aircraft(result: CloseLoopResult, root: Path, out_name: str) -> Path:
     """Write the aircraft with its added effects as ``aircraft/<out_name>/`` of ``root`` (the
     parent's folder copied, its XML replaced), loadable by JSBSim and by this workbench."""
-    import shutil
-    from . import xmlmodel
-    from .build import AircraftPaths
-    src = AircraftPaths(result.sim.root, result.sim.name)
-    dst = AircraftPaths(Path(root), out_name)
-    if dst.folder.resolve() != src.folder.resolve():
-        dst.folder.mkdir(parents=True, exist_ok=True)
-        for f in src.folder.iterdir():
-            if f.is_file() and f.suffix != ".xml" and f.name != "calibration.json":
-                shutil.copy(f, dst.folder / f.name)
-    tree = result.sim.aircraft_tree()
-    xmlmodel.write(tree, dst.aircraft_xml)
-    return dst.aircraft_xml
+    return write_derived(AircraftPaths(result.sim.root, result.sim.name), result.sim.aircraft_tree(),
+                         result.sim.factors, AircraftPaths(Path(root), out_name))

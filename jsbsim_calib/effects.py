@@ -17,14 +17,13 @@ Two conventions let effects change what is *measured* rather than what flies:
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
-from . import xmlmodel
+from .errors import ModelError
 from .factors import Factor
-from .physics.geometry import AircraftGeometry
+from .jsbsim.xml import is_comment, parse
 
 LIBRARY_DIR = Path(__file__).resolve().parent / "effects"
 
@@ -39,7 +38,7 @@ class Effect:
     note: str                       # the physics, from the file's comment
     factors: tuple[Factor, ...]     # short names within the effect (K, K_alpha, ...); step "effect"
     path: Path
-    spec: dict                      # parsed file (xmlmodel.read_effect)
+    text: str                       # the file, placeholders such as {prop_radius_ft} left in place
 
     def label(self, f: Factor) -> str:
         return f"{self.name}.{f.name}"
@@ -49,12 +48,39 @@ class Effect:
         return {self.label(f): replace(f, name=self.label(f)) for f in self.factors}
 
 
+def _words(text: str | None) -> str:
+    return " ".join((text or "").split())
+
+
 def load_effect(path: Path) -> Effect:
-    spec = xmlmodel.read_effect(path)
-    factors = tuple(Factor(f["name"], f["property"], f["neutral"], f["lower"], f["upper"], f["unit"], ("effect",),
-                           spec["affects"], spec["description"], f["doc"]) for f in spec["factors"])
-    return Effect(spec["name"], spec["description"], spec["affects"], spec["same_as"], spec["regressor"], spec["note"],
-                  factors, Path(path), spec)
+    """Read an effect file: its name, what it affects, its factors and its XML parts."""
+    try:
+        text = Path(path).read_text()
+    except OSError as exc:
+        raise ModelError(f"{path}: cannot read effect: {exc}") from None
+    root = parse(text, str(path))
+    if root.tag != "effect" or not root.get("name"):
+        raise ModelError(f"{path}: the root element must be <effect name=...>")
+    note = ""
+    prev = root.getprevious()
+    while prev is not None:
+        if is_comment(prev):
+            note = _words(prev.text)
+        prev = prev.getprevious()
+    affects = tuple((root.get("affects") or "").split())
+    description = _words(root.findtext("description"))
+    factors = []
+    for f in root.findall("factor"):
+        try:
+            factors.append(Factor(f.get("name"), f.get("property"), float(f.get("neutral")), float(f.get("lower")),
+                                  float(f.get("upper")), f.get("unit", "-"), ("effect",), affects, description,
+                                  _words(f.text)))
+        except (TypeError, ValueError):
+            raise ModelError(f"{path}: factor needs name, property, neutral, lower, upper") from None
+    if not factors:
+        raise ModelError(f"{path}: an effect needs at least one <factor>")
+    return Effect(root.get("name"), description, affects, tuple((root.get("same_as") or "").split()),
+                  _words(root.findtext("regressor")), note, tuple(factors), Path(path), text)
 
 
 @lru_cache(maxsize=None)
@@ -65,10 +91,3 @@ def _library(directory: str) -> tuple[Effect, ...]:
 def library(directory: Path | None = None) -> dict[str, Effect]:
     """All effects of a library directory (default: the package's), by name."""
     return {e.name: e for e in _library(str(directory or LIBRARY_DIR))}
-
-
-def constants(geometry: AircraftGeometry) -> dict[str, float]:
-    """The aircraft constants effect files may use."""
-    d_ft = geometry.propeller.diameter_m / 0.3048
-    return {"prop_radius_ft": d_ft / 2.0, "prop_diameter_ft": d_ft, "prop_disk_area_ft2": math.pi * d_ft**2 / 4.0,
-            "wing_span_ft": geometry.reference.span_m / 0.3048}

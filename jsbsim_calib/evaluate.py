@@ -24,7 +24,8 @@ import pandas as pd
 
 from . import flighttest, logs
 from .data import METRICS, Dataset
-from .fdm import Condition, Simulator, TrimResult
+from .jsbsim.condition import Condition, TrimResult
+from .jsbsim.simulator import Simulator
 from .physics.atmosphere import kcas_from_kias
 from .physics.geometry import AircraftGeometry
 

@@ -46,7 +46,7 @@ import pandas as pd
 
 from .data import Column, Dataset, validate_frame, Schema, read_csv_checked
 from .errors import DataError, Problem
-from .fdm import Condition, TrimResult
+from .jsbsim.condition import Condition, TrimResult
 
 # data sign = DATA_SIGN * JSBSim sign (and back: the map is its own inverse)
 DATA_SIGN = {"elevator": -1.0, "aileron": 1.0, "rudder": -1.0}

@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from .data import Dataset
-from .fdm import Condition, TrimResult
+from .jsbsim.condition import Condition, TrimResult
 from .g1000 import SegmentCriteria, WeightAssumption, extract_segments, plot_log, read_g1000, segments_dataframe
 from .physics.geometry import AircraftGeometry
 

@@ -177,8 +177,8 @@ def residuals_vs(before, after, metric: str, regressor: str) -> Figure:
     return fig
 
 
-def aero_polars(curves: Mapping[str, Mapping[str, np.ndarray]], ax=None) -> Figure:
-    """CL vs alpha and CL vs CD for each model (curves: label -> {alpha_deg, CL, CD})."""
+def aero_polars(curves: Mapping[str, object], ax=None) -> Figure:
+    """CL vs alpha and CL vs CD for each model (curves: label -> AeroCurves: alpha_deg, CL, CD)."""
     if ax is None:
         fig = Figure(figsize=(9.0, 4.0), dpi=110)
         a1, a2 = fig.add_subplot(121), fig.add_subplot(122)
@@ -186,8 +186,8 @@ def aero_polars(curves: Mapping[str, Mapping[str, np.ndarray]], ax=None) -> Figu
         fig, (a1, a2) = ax[0].figure, ax
     for label, c in curves.items():
         st = _style(label)
-        a1.plot(c["alpha_deg"], c["CL"], label=label, **st)
-        a2.plot(c["CD"], c["CL"], label=label, **st)
+        a1.plot(c.alpha_deg, c.CL, label=label, **st)
+        a2.plot(c.CD, c.CL, label=label, **st)
     a1.set_xlabel("angle of attack [deg]")
     a1.set_ylabel("CL")
     a2.set_xlabel("CD")

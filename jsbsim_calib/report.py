@@ -7,8 +7,10 @@ import numpy as np
 
 from . import plots
 from .factors import REGISTRY
-from .fdm import Simulator
-from .workflow import SteadyCalibration, TrimsCalibration, aero_curves, propeller_tables_for
+from .jsbsim.probes import aero_curves
+from .jsbsim.product import AircraftPaths, propeller_tables
+from .jsbsim.simulator import Simulator
+from .workflow import SteadyCalibration, TrimsCalibration
 
 TARGETS = {"roc_fpm": "RMSE <= 20 fpm, 100 % within +-100", "rpm": "RMSE <= 10, 100 % within +-50",
            "pct_power": "RMSE <= 1.0 point, 100 % within +-5", "gph": "100 % within +-5 %"}
@@ -93,8 +95,9 @@ def write_steady_report(result: SteadyCalibration, root: Path, out_dir: Path) ->
     with Simulator(root, name, baseline=True) as sb, Simulator(root, name, factors=result.factors) as sc:
         figs["aero"] = plots.aero_polars({"baseline": aero_curves(sb), "calibrated": aero_curves(sc)})
     from .factors import FactorSet
-    figs["propeller"] = plots.propeller_curves({"baseline": propeller_tables_for(root, name, FactorSet()),
-                                                "calibrated": propeller_tables_for(root, name, result.factors)})
+    paths = AircraftPaths(root, name)
+    figs["propeller"] = plots.propeller_curves({"baseline": propeller_tables(paths, FactorSet()),
+                                                "calibrated": propeller_tables(paths, result.factors)})
     for k, fig in figs.items():
         plots.save(fig, out_dir / f"steady_{k}.png")
 

@@ -8,29 +8,21 @@ calibrated aircraft, and ``jsbsim-calib generate <name>`` reproduces the same by
 """
 from __future__ import annotations
 
-import json
-import math
 import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
-from lxml import etree
 
-from . import __version__, xmlmodel
-from .build import AircraftPaths, load_aircraft_geometry, propeller_tree, read_bem_csv
+from .jsbsim.product import load_aircraft_geometry
 from .calibrate import TRIM_STEPS, FitResult, TrimStep, stage1_subset, steady_stage, trims_stage
 from .data import METRICS, Dataset, load_dataset
 from .errors import ModelError
 from .evaluate import Evaluation, PointResult, evaluate_dataset, summarize
 from .factors import FactorSet, set_in
-from .fdm import Simulator
+from .jsbsim.simulator import Simulator
 from .flighttest import QuirkWarning
-from .physics.atmosphere import isa_temperature
-from .physics.propeller import apply_factors
-from .units import FT, KT
 
 
 @dataclass
@@ -109,65 +101,6 @@ def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
     return SteadyCalibration(name, fit, ff, baseline, calibrated,
                              {k: thesis_summary(ds) for k, ds in data.items()}, ff.final,
                              time.perf_counter() - t0, trims, ci, ki)
-
-
-def write_product(root: Path | str, name: str, factors: FactorSet, stage: str, record: dict) -> list[Path]:
-    """Write calibrated factors into the aircraft: XML property values, baked propeller
-    tables and the calibration record. Returns the files written. A steady-stage result
-    starts a new record (the flight-test stage builds on it and must be rerun)."""
-    paths = AircraftPaths(Path(root), name)
-    # the record stores 10 decimals; write exactly those values so 'generate' reproduces the files
-    factors = FactorSet({k: round(v, 10) for k, v in factors.items()})
-    geom = load_aircraft_geometry(paths.root, name)
-    tree = etree.parse(str(paths.aircraft_xml))
-    xmlmodel.set_factor_values(tree, factors)
-    xmlmodel.write(tree, paths.aircraft_xml)
-    bem = read_bem_csv(paths.propeller_bem)
-    xmlmodel.write(propeller_tree(geom, bem, factors, paths), paths.propeller_xml)
-    rec = json.loads(paths.calibration.read_text()) if paths.calibration.is_file() else {}
-    rec["aircraft"] = name
-    rec["jsbsim_calib"] = __version__
-    rec["factors"] = {k: round(v, 10) for k, v in factors.items()}
-    if stage == "steady":
-        rec["stages"] = {}
-    rec.setdefault("stages", {})[stage] = record
-    paths.calibration.write_text(json.dumps(rec, indent=2) + "\n")
-    return [paths.aircraft_xml, paths.propeller_xml, paths.calibration]
-
-
-def aero_curves(sim: Simulator, alphas_deg=np.arange(-6.0, 22.01, 1.0), ktas: float = 90.0,
-                pressure_alt_ft: float = 5000.0) -> dict[str, np.ndarray]:
-    """Whole-aircraft CL and CD (aerodynamic forces only) vs alpha, elevator neutral, clean."""
-    fdm = sim.fdm
-    sim.set_loading(2400.0)
-    sim.set_atmosphere(pressure_alt_ft, float(isa_temperature(pressure_alt_ft * FT)))
-    V = ktas * KT / FT
-    CL, CD = [], []
-    fdm["fcs/flap-cmd-norm"] = 0.0
-    for c in ("fcs/elevator-cmd-norm", "fcs/aileron-cmd-norm", "fcs/rudder-cmd-norm"):
-        fdm[c] = 0.0
-    for a_deg in alphas_deg:
-        a = math.radians(a_deg)
-        fdm["ic/phi-rad"] = 0.0
-        fdm["ic/theta-rad"] = a
-        fdm["ic/u-fps"] = V * math.cos(a)
-        fdm["ic/v-fps"] = 0.0
-        fdm["ic/w-fps"] = V * math.sin(a)
-        for r in ("p", "q", "r"):
-            fdm[f"ic/{r}-rad_sec"] = 0.0
-        fdm.run_ic()
-        fdm.run()
-        q = fdm["aero/qbar-psf"] * fdm["metrics/Sw-sqft"]
-        fx, fz = fdm["forces/fbx-aero-lbs"], fdm["forces/fbz-aero-lbs"]
-        CL.append((fx * math.sin(a) - fz * math.cos(a)) / q)
-        CD.append((-fx * math.cos(a) - fz * math.sin(a)) / q)
-    return {"alpha_deg": np.asarray(alphas_deg, float), "CL": np.array(CL), "CD": np.array(CD)}
-
-
-def propeller_tables_for(root: Path | str, name: str, factors: FactorSet):
-    paths = AircraftPaths(Path(root), name)
-    bem = read_bem_csv(paths.propeller_bem)
-    return apply_factors(bem, factors.propeller())
 
 
 # --------------------------------------------------------------------------- stage 2a

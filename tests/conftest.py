@@ -14,7 +14,7 @@ def repo() -> Path:
 @pytest.fixture(scope="session")
 def generated_root(tmp_path_factory) -> Path:
     """A copy of the repository's JSBSim root with every aircraft regenerated from its geometry."""
-    from jsbsim_calib.build import generate
+    from jsbsim_calib.generate import generate
     root = tmp_path_factory.mktemp("root")
     for d in ("aircraft", "engine", "airfoils", "data", "scripts"):
         shutil.copytree(REPO / d, root / d)

@@ -2,7 +2,7 @@
 
 * the committed files load from the repository root and declare every calibration factor;
 * plausibility of the model (lift slope, stall speeds, static and dynamic stability)
-  through :mod:`jsbsim_calib.stability`;
+  through :mod:`jsbsim_calib.jsbsim.probes`;
 * the uncalibrated (baseline) model trims at every POH climb and cruise point;
 * every calibration factor moves a trimmed result in the direction its doc line states.
 
@@ -20,10 +20,12 @@ import jsbsim
 import pytest
 from lxml import etree
 
-from jsbsim_calib import xmlmodel
+from jsbsim_calib.jsbsim.aircraft import read_factors
+from jsbsim_calib.jsbsim.propulsion import read_baked_factors
 from jsbsim_calib.factors import FACTORS, REGISTRY, FactorSet
-from jsbsim_calib.fdm import Condition, Simulator, TrimResult
-from jsbsim_calib.stability import Derivatives, StallCase, report, stall_speed, trim_derivatives
+from jsbsim_calib.jsbsim.condition import Condition, TrimResult
+from jsbsim_calib.jsbsim.simulator import Simulator
+from jsbsim_calib.jsbsim.probes import Derivatives, StallCase, report, stall_speed, trim_derivatives
 
 REPO = Path(__file__).resolve().parents[1]
 AIRCRAFT_XML = REPO / "aircraft" / "c172" / "c172.xml"
@@ -76,7 +78,7 @@ def test_committed_model_loads_and_declares_every_factor():
     fdm = jsbsim.FGFDMExec(str(REPO))
     fdm.set_debug_level(0)
     assert fdm.load_model("c172") is True
-    declared = xmlmodel.read_factors(AIRCRAFT_XML)
+    declared = read_factors(AIRCRAFT_XML)
     tree = etree.parse(str(AIRCRAFT_XML))
     decl = {}
     for el in tree.iter("property"):
@@ -97,7 +99,7 @@ def test_committed_model_loads_and_declares_every_factor():
             problems.append(f"{f.name}: XML {decl[f.property][0]!r}, read_factors {declared[f.name]!r}")
     assert not problems, "\n".join(problems)
     # the propeller tables carry the same propeller factors as the aircraft file declares
-    baked = xmlmodel.read_baked_factors(PROPELLER_XML)
+    baked = read_baked_factors(PROPELLER_XML)
     assert baked is not None
     assert {k: declared[k] for k in baked} == pytest.approx(baked, abs=1e-9)
 
@@ -165,7 +167,7 @@ def test_stall_speed_falls_with_flaps_and_aft_cg(baseline_sim):
 
 def test_report_is_json_safe(committed):
     too_slow = Condition(0.0, 2550.0, kcas=30.0, mode="level")
-    rep = report(committed, {"cruise": CRUISE, "too slow": too_slow}, stall_cases=[StallCase(2550.0, 47.3)])
+    rep = report(committed, {"cruise": CRUISE, "too slow": too_slow}, stall_cases=[StallCase(2550.0, 47.3)]).as_dict()
     json.dumps(rep, allow_nan=False)
     assert rep["aircraft"] == "c172"
     assert rep["derivatives"]["cruise"]["CL_alpha"] == pytest.approx(trim_derivatives(committed, CRUISE).CL_alpha)

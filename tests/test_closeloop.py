@@ -18,11 +18,12 @@ import jsbsim
 import pytest
 from lxml import etree
 
-from jsbsim_calib import xmlmodel
+from jsbsim_calib.jsbsim import xml
 from jsbsim_calib.closeloop import close_loop, write_aircraft
 from jsbsim_calib.data import load_dataset
 from jsbsim_calib.effects import library
-from jsbsim_calib.fdm import Condition, Simulator
+from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.flighttest import QuirkWarning
 from jsbsim_calib.synth import synthesize, write_csv
 
@@ -43,7 +44,7 @@ def make_truth(tmp_path: Path, effects: dict[str, dict[str, float]], extra_roll_
         tree = s.aircraft_tree()
     if extra_roll_xml:
         tree.getroot().find("aerodynamics/axis[@name='ROLL']").append(etree.fromstring(extra_roll_xml))
-    xmlmodel.write(tree, d / "c172.xml")
+    xml.write(tree, d / "c172.xml")
     return d
 
 

@@ -9,7 +9,8 @@ import jsbsim
 import numpy as np
 import pytest
 
-from jsbsim_calib.build import AircraftPaths, generate
+from jsbsim_calib.generate import generate
+from jsbsim_calib.jsbsim.product import AircraftPaths
 from jsbsim_calib.errors import GeometryError
 
 AIRCRAFT = ("c172", "sr20")

@@ -23,7 +23,7 @@ from jsbsim_calib.physics.aero.lifting_line import (LiftingLine, freestream_dir,
 from jsbsim_calib.physics.aero.sections import dcm_ddelta, section_coefficients, tau
 from jsbsim_calib.physics.aero.strips import StripModel, wind_to_coeffs
 from jsbsim_calib.physics.airfoil import AIRFOIL_DIR, load_airfoil
-from jsbsim_calib.build import airfoil_dirs
+from jsbsim_calib.jsbsim.product import airfoil_dirs
 from jsbsim_calib.physics.geometry import LiftingSurface, load_geometry
 
 REPO = Path(__file__).resolve().parents[1]

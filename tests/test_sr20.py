@@ -16,8 +16,9 @@ from jsbsim_calib.calibrate import PointSet, fit, point_residuals
 from jsbsim_calib.data import load_dataset
 from jsbsim_calib.evaluate import evaluate_dataset
 from jsbsim_calib.factors import FactorSet
-from jsbsim_calib.fdm import Condition, Simulator
-from jsbsim_calib.stability import default_conditions, stall_speed, trim_derivatives
+from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.jsbsim.simulator import Simulator
+from jsbsim_calib.jsbsim.probes import default_conditions, stall_speed, trim_derivatives
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,8 @@ from jsbsim_calib.data import load_dataset
 from jsbsim_calib.errors import DataError
 from jsbsim_calib.evaluate import KINDS, evaluate_dataset
 from jsbsim_calib.factors import FactorSet
-from jsbsim_calib.fdm import Condition, Simulator, TrimResult
+from jsbsim_calib.jsbsim.condition import Condition, TrimResult
+from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.flighttest import (QuirkWarning, load_control_travel, snapshot_value, to_data_sign,
                                      to_jsbsim_sign)
 from jsbsim_calib.workflow import steady_factors

@@ -95,6 +95,7 @@ __all__ = [
     "PropellerTables",
     "propeller_tables",
     "apply_factors",
+    "blade_angle_absorbing",
     "MACH_CAP",
 ]
 
@@ -733,3 +734,17 @@ def apply_factors(base: PropellerTables, factors: Mapping[str, float],
     for name, value in f.items():
         prov[f"factor.{name}"] = repr(value)
     return PropellerTables(J=Jo, beta75_deg=base.beta75_deg, CT=CT, CP=CP, provenance=prov)
+
+
+def blade_angle_absorbing(tables: PropellerTables, power_w: float, rpm: float, speed_ms: float, rho: float,
+                          diameter_m: float, pitch_range_deg: tuple[float, float]) -> float:
+    """Blade angle at 0.75 R [deg] at which a constant-speed propeller with ``tables`` absorbs
+    ``power_w`` at ``rpm``, ``speed_ms`` and air density ``rho``, within ``pitch_range_deg``
+    (the fine stop where the power coefficient does not rise with the blade angle)."""
+    n = rpm / 60.0
+    J = speed_ms / (n * diameter_m)
+    cp_needed = power_w / (rho * n**3 * diameter_m**5)
+    cp = np.array([np.interp(J, tables.J, tables.CP[:, k]) for k in range(len(tables.beta75_deg))])
+    lo, hi = pitch_range_deg
+    beta = float(np.interp(cp_needed, cp, tables.beta75_deg)) if np.all(np.diff(cp) > 0) else lo
+    return min(max(beta, lo), hi)

@@ -1,11 +1,13 @@
-"""Physical checks of a generated aircraft, computed with JSBSim itself.
+"""Probes of a loaded aircraft: what JSBSim makes of it, beyond a trim.
 
 * :func:`trim_derivatives` trims the aircraft at a condition and differences JSBSim's
   total aerodynamic forces and moments around the trimmed state: lift slope, static
   stability about the CG, the sideslip derivatives and the rate damping.
 * :func:`stall_speed` searches the lowest calibrated airspeed at which the aircraft can be
   trimmed in a steady power-off glide with the elevator inside its stops.
-* :func:`report` collects both for one aircraft in a plain, JSON-safe dict.
+* :func:`report` collects both for one aircraft (:class:`StabilityReport`, JSON through
+  ``as_dict()``).
+* :func:`aero_curves` sweeps the whole aircraft's lift and drag over angle of attack.
 
 How a state is evaluated: exactly as :meth:`Simulator.trim` sets one. The attitude
 (``ic/phi-rad``, ``ic/theta-rad``, ``ic/psi-true-rad``), body velocities (``ic/u-fps``,
@@ -35,14 +37,17 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Mapping, Sequence
 
 import numpy as np
 
-from .errors import TrimError
-from .fdm import Condition, Simulator, TrimResult
-from .physics.atmosphere import kias_from_kcas
+from ..errors import TrimError
+from ..physics.atmosphere import isa_temperature, kias_from_kcas
+from ..units import FT, KT
+from .condition import Condition, TrimResult
+from .simulator import Simulator
+from .trim import set_atmosphere
 
 # Central-difference steps (half the distance between the two evaluated states)
 STEP_ALPHA_RAD = math.radians(1.0)     # [rad] angle of attack
@@ -157,22 +162,51 @@ def _set_state(fdm, s: _State) -> None:
     fdm.run()
 
 
+@dataclass(frozen=True)
+class AeroReading:
+    """JSBSim's aerodynamic forces and moments of the state it holds, with what normalizes them."""
+
+    fx_lbf: float             # body axes
+    fy_lbf: float
+    fz_lbf: float
+    l_lbft: float             # about the CG, body axes
+    m_lbft: float
+    n_lbft: float
+    qbar_psf: float
+    area_ft2: float
+    span_ft: float
+    chord_ft: float
+    alpha_rad: float
+    alphadot_rad_s: float
+    speed_fps: float
+
+    @classmethod
+    def of(cls, fdm) -> "AeroReading":
+        return cls(fdm["forces/fbx-aero-lbs"], fdm["forces/fby-aero-lbs"], fdm["forces/fbz-aero-lbs"],
+                   fdm["moments/l-aero-lbsft"], fdm["moments/m-aero-lbsft"], fdm["moments/n-aero-lbsft"],
+                   fdm["aero/qbar-psf"], fdm["metrics/Sw-sqft"], fdm["metrics/bw-ft"], fdm["metrics/cbarw-ft"],
+                   fdm["aero/alpha-rad"], fdm["aero/alphadot-rad_sec"], fdm["velocities/vt-fps"])
+
+    def lift_drag_lbf(self, alpha_rad: float | None = None) -> tuple[float, float]:
+        """Lift and drag: the body-axis forces rotated into stability axes at ``alpha_rad``
+        (default JSBSim's angle of attack)."""
+        a = self.alpha_rad if alpha_rad is None else alpha_rad
+        return (self.fx_lbf * math.sin(a) - self.fz_lbf * math.cos(a),
+                -self.fx_lbf * math.cos(a) - self.fz_lbf * math.sin(a))
+
+
 _KEYS = ("CL", "CD", "CY", "Cl", "Cm", "Cn")
 
 
 def _raw_coefficients(fdm, s: _State) -> tuple[np.ndarray, float]:
     """Aerodynamic coefficients (order of _KEYS) of a state and its alphadot cbar/(2V)."""
     _set_state(fdm, s)
-    q, S = fdm["aero/qbar-psf"], fdm["metrics/Sw-sqft"]
-    b, c = fdm["metrics/bw-ft"], fdm["metrics/cbarw-ft"]
-    a = fdm["aero/alpha-rad"]
-    fx, fy, fz = fdm["forces/fbx-aero-lbs"], fdm["forces/fby-aero-lbs"], fdm["forces/fbz-aero-lbs"]
-    lift = fx * math.sin(a) - fz * math.cos(a)
-    drag = -fx * math.cos(a) - fz * math.sin(a)
-    qS = q * S
-    out = np.array([lift / qS, drag / qS, fy / qS, fdm["moments/l-aero-lbsft"] / (qS * b),
-                    fdm["moments/m-aero-lbsft"] / (qS * c), fdm["moments/n-aero-lbsft"] / (qS * b)])
-    adot_hat = fdm["aero/alphadot-rad_sec"] * c / (2.0 * fdm["velocities/vt-fps"])
+    r = AeroReading.of(fdm)
+    lift, drag = r.lift_drag_lbf()
+    qS = r.qbar_psf * r.area_ft2
+    out = np.array([lift / qS, drag / qS, r.fy_lbf / qS, r.l_lbft / (qS * r.span_ft), r.m_lbft / (qS * r.chord_ft),
+                    r.n_lbft / (qS * r.span_ft)])
+    adot_hat = r.alphadot_rad_s * r.chord_ft / (2.0 * r.speed_fps)
     if not (np.all(np.isfinite(out)) and math.isfinite(adot_hat)):
         raise TrimError("JSBSim returned non-finite aerodynamic forces for a perturbed state")
     return out, adot_hat
@@ -235,10 +269,8 @@ def trim_derivatives(sim: Simulator, cond: Condition) -> Derivatives:
 # --------------------------------------------------------------------------- stall
 def _lift_coefficient(sim: Simulator) -> float:
     """Stability-axis lift coefficient of the state JSBSim holds."""
-    fdm = sim.fdm
-    a = fdm["aero/alpha-rad"]
-    lift = fdm["forces/fbx-aero-lbs"] * math.sin(a) - fdm["forces/fbz-aero-lbs"] * math.cos(a)
-    return lift / (fdm["aero/qbar-psf"] * fdm["metrics/Sw-sqft"])
+    r = AeroReading.of(sim.fdm)
+    return r.lift_drag_lbf()[0] / (r.qbar_psf * r.area_ft2)
 
 
 def stall_speed(sim: Simulator, weight_lb: float, cg_in: float, flaps_deg: float = 0.0,
@@ -367,26 +399,94 @@ def default_conditions(sim: Simulator) -> dict[str, Condition]:
     return out
 
 
+AXES = "body axes, moments about the CG, alphadot = 0; rates per unit p b/(2V), q cbar/(2V), r b/(2V)"
+
+
+@dataclass(frozen=True)
+class TrimFailure:
+    """A condition of the report that does not trim, and why."""
+
+    condition: Condition
+    error: str
+
+    def as_dict(self) -> dict:
+        return {"error": self.error, "condition": asdict(self.condition)}
+
+
+@dataclass(frozen=True)
+class StabilityReport:
+    """Stability derivatives at named conditions and stall speeds of one aircraft."""
+
+    aircraft: str
+    factors_changed: dict[str, float]               # calibration factors away from neutral
+    derivatives: dict[str, Derivatives | TrimFailure]
+    stall: list[StallResult] = field(default_factory=list)
+    axes: str = AXES
+
+    def as_dict(self) -> dict:
+        """JSON-safe (NaN as null): the schema ``check --json`` writes."""
+        return _json_safe({"aircraft": self.aircraft, "factors_changed": dict(self.factors_changed), "axes": self.axes,
+                           "derivatives": {k: d.as_dict() for k, d in self.derivatives.items()},
+                           "stall": [s.as_dict() for s in self.stall]})
+
+
 def report(sim: Simulator, conditions: Mapping[str, Condition] | None = None,
-           stall_cases: Sequence[StallCase] | None = None) -> dict:
-    """Derivatives at each named condition and stall speeds, as a JSON-safe dict.
+           stall_cases: Sequence[StallCase] | None = None) -> StabilityReport:
+    """Derivatives at each named condition and stall speeds.
 
     ``conditions`` defaults to :func:`default_conditions`, ``stall_cases`` to
     :func:`default_stall_cases`. A condition that does not
     trim is reported with its reason instead of derivatives.
     """
-    out: dict = {"aircraft": sim.name, "factors_changed": dict(sim.factors.changed()),
-                 "axes": "body axes, moments about the CG, alphadot = 0; rates per unit p b/(2V), q cbar/(2V), r b/(2V)",
-                 "derivatives": {}, "stall": []}
+    derivatives: dict[str, Derivatives | TrimFailure] = {}
     for name, cond in (default_conditions(sim) if conditions is None else conditions).items():
         try:
-            out["derivatives"][name] = trim_derivatives(sim, cond).as_dict()
+            derivatives[name] = trim_derivatives(sim, cond)
         except TrimError as exc:
-            out["derivatives"][name] = {"error": str(exc), "condition": asdict(cond)}
-    for case in (default_stall_cases(sim) if stall_cases is None else stall_cases):
-        out["stall"].append(stall_speed(sim, case.weight_lb, case.cg_in, case.flaps_deg,
-                                        case.pressure_alt_ft).as_dict())
-    return _json_safe(out)
+            derivatives[name] = TrimFailure(cond, str(exc))
+    stall = [stall_speed(sim, case.weight_lb, case.cg_in, case.flaps_deg, case.pressure_alt_ft)
+             for case in (default_stall_cases(sim) if stall_cases is None else stall_cases)]
+    return StabilityReport(sim.name, dict(sim.factors.changed()), derivatives, stall)
+
+
+# --------------------------------------------------------------------------- aerodynamic curves
+@dataclass(frozen=True)
+class AeroCurves:
+    """Whole-aircraft lift and drag coefficients (aerodynamic forces only) over angle of attack."""
+
+    alpha_deg: np.ndarray     # [deg]
+    CL: np.ndarray            # [-] stability axes
+    CD: np.ndarray            # [-]
+
+
+def aero_curves(sim: Simulator, alphas_deg=np.arange(-6.0, 22.01, 1.0), ktas: float = 90.0,
+                pressure_alt_ft: float = 5000.0) -> AeroCurves:
+    """Lift curve and drag polar at ``ktas``, ISA, 2400 lb, elevator neutral, clean."""
+    fdm = sim.fdm
+    sim.set_loading(2400.0)
+    set_atmosphere(fdm, pressure_alt_ft, float(isa_temperature(pressure_alt_ft * FT)))
+    V = ktas * KT / FT
+    CL, CD = [], []
+    fdm["fcs/flap-cmd-norm"] = 0.0
+    for c in ("fcs/elevator-cmd-norm", "fcs/aileron-cmd-norm", "fcs/rudder-cmd-norm"):
+        fdm[c] = 0.0
+    for a_deg in alphas_deg:
+        a = math.radians(a_deg)
+        fdm["ic/phi-rad"] = 0.0
+        fdm["ic/theta-rad"] = a
+        fdm["ic/u-fps"] = V * math.cos(a)
+        fdm["ic/v-fps"] = 0.0
+        fdm["ic/w-fps"] = V * math.sin(a)
+        for r in ("p", "q", "r"):
+            fdm[f"ic/{r}-rad_sec"] = 0.0
+        fdm.run_ic()
+        fdm.run()
+        reading = AeroReading.of(fdm)
+        q = reading.qbar_psf * reading.area_ft2
+        lift, drag = reading.lift_drag_lbf(a)
+        CL.append(lift / q)
+        CD.append(drag / q)
+    return AeroCurves(np.asarray(alphas_deg, float), np.array(CL), np.array(CD))
 
 
 CHECK_COLUMNS = (("kcas", "KCAS", ".1f"), ("alpha_deg", "alpha", ".2f"), ("elevator_deg", "elev", ".2f"),
@@ -395,8 +495,9 @@ CHECK_COLUMNS = (("kcas", "KCAS", ".1f"), ("alpha_deg", "alpha", ".2f"), ("eleva
                  ("Cm_q", "Cm_q", ".2f"), ("Cn_r", "Cn_r", ".4f"))
 
 
-def format_report(rep: dict) -> str:
+def format_report(report: StabilityReport) -> str:
     """The plausibility report (:func:`report`) as text tables, as ``check`` prints it."""
+    rep = report.as_dict()
     lines = [f"{rep['aircraft']}: stability and control derivatives ({rep['axes']})",
              f"{'condition':<16}" + "".join(f"{h:>9}" for _, h, _ in CHECK_COLUMNS)]
     for name, d in rep["derivatives"].items():
