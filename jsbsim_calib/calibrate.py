@@ -22,7 +22,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
-from .data import METRICS, Dataset
+from .data.schemas import METRICS, Dataset
 from .evaluate import KINDS
 from .factors import FactorSet, step_factors
 from .jsbsim.condition import Condition, TrimResult

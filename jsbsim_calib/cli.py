@@ -124,7 +124,7 @@ def cmd_evaluate(a) -> int:
     print(ev.table())
     out_dir = Path(a.report_dir) / a.aircraft
     if ds.kind == "g1000":
-        from .logs import write_log_report
+        from .report import write_log_report
         png, md = write_log_report(ev, out_dir)
         print(f"{ds.extra['weight_note']}\nplot: {png}")
     else:

@@ -36,7 +36,7 @@ from typing import Callable
 import numpy as np
 
 from .calibrate import FAIL_PENALTY, FitResult, fit
-from .data import METRICS, Dataset
+from .data.schemas import METRICS, Dataset
 from .diagnose import MetricDiagnosis, diagnose
 from .effects import Effect, library
 from .evaluate import KINDS, Evaluation, evaluate_dataset

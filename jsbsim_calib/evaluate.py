@@ -22,37 +22,12 @@ from typing import Callable, Sequence
 import numpy as np
 import pandas as pd
 
-from . import flighttest, logs
-from .data import METRICS, Dataset
+from .data import flighttest, logs
+from .data.poh import poh_climb_conditions, poh_cruise_conditions, poh_value
+from .data.schemas import METRICS, Dataset
 from .jsbsim.condition import Condition, TrimResult
 from .jsbsim.simulator import Simulator
-from .physics.atmosphere import kcas_from_kias
 from .physics.geometry import AircraftGeometry
-
-
-def _temperature(row) -> dict:
-    if "oat_c" in row and np.isfinite(row.get("oat_c", np.nan)):
-        return {"oat_c": float(row["oat_c"])}
-    return {"isa_dev_c": float(row.get("temp_dev_c", 0.0) or 0.0)}
-
-
-def poh_climb_conditions(ds: Dataset, geom: AircraftGeometry) -> list[Condition]:
-    """Full throttle, POH mixture procedure, KIAS -> KCAS by the aircraft's calibration, flight path free."""
-    return [Condition(pressure_alt_ft=r.pressure_alt_ft, weight_lb=r.weight_lb, kcas=kcas_from_kias(r.kias, geom.operations.airspeed_calibration),
-                      mode="full_throttle", mixture="climb", flaps_deg=r.flaps_deg, **_temperature(r))
-            for _, r in ds.frame.iterrows()]
-
-
-def poh_cruise_conditions(ds: Dataset, geom: AircraftGeometry) -> list[Condition]:
-    """Level flight at KTAS, throttle trims, best-power mixture."""
-    return [Condition(pressure_alt_ft=r.pressure_alt_ft, weight_lb=r.weight_lb, ktas=r.ktas, mode="level",
-                      flaps_deg=r.flaps_deg, rpm=r.get("rpm") if np.isfinite(r.get("rpm", np.nan)) else None,
-                      **_temperature(r))
-            for _, r in ds.frame.iterrows()]
-
-
-def poh_value(metric: str, t: TrimResult) -> float:
-    return {"roc_fpm": t.roc_fpm, "rpm": t.rpm, "pct_power": t.pct_power, "gph": t.gph}[metric]
 
 
 @dataclass(frozen=True)

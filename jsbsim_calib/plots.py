@@ -4,7 +4,9 @@ Matplotlib's Agg backend only: no display needed.
 """
 from __future__ import annotations
 
-from typing import Mapping
+import math
+from pathlib import Path
+from typing import Any, Mapping, Sequence
 
 import matplotlib
 
@@ -12,7 +14,12 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from .data import METRICS  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from .data.g1000.parse import G1000Log  # noqa: E402
+from .data.g1000.segments import Segment  # noqa: E402
+from .data.schemas import METRICS  # noqa: E402
+from .physics.atmosphere import kcas_from_kias, ktas_from_kcas, pressure_altitude_ft  # noqa: E402
 
 STYLES = {"baseline": dict(color="tab:gray", ls="--", lw=1.2), "calibrated": dict(color="tab:blue", ls="-", lw=1.6),
           "thesis": dict(color="tab:orange", ls=":", lw=1.2)}
@@ -226,3 +233,101 @@ def propeller_curves(tables: Mapping[str, object], ax=None) -> Figure:
 def save(fig: Figure, path) -> None:
     fig.tight_layout()
     fig.savefig(path)
+
+
+# --------------------------------------------------------------------------- G1000 logs
+
+_SEGMENT_COLOURS = {"cruise": "tab:green", "climb": "tab:orange"}
+PLOT_PANELS = ("altitude", "airspeed", "vertical speed", "pitch", "rpm", "fuel flow")
+
+
+def plot_log(log: G1000Log, segments: Sequence[Segment], *, model: pd.DataFrame | None = None,
+             ax: Sequence[Any] | None = None) -> Any:
+    """Plot a log against time with the segments shaded; return the matplotlib Figure.
+
+    Six stacked panels sharing the time axis [min]: altitude (AltB and pressure altitude),
+    airspeed (IAS, logged TAS, computed KTAS), vertical speed, pitch, E1 RPM and fuel flow.
+    Cruise segments are shaded green, climbs orange, each labelled with its number. ``model``,
+    a DataFrame with one row per segment and columns ``t_start_s``, ``rpm``, ``roc_fpm`` and
+    ``pitch_deg`` (NaN where a value does not apply), is drawn as black markers over the
+    segment it belongs to (matched on ``t_start_s``), on the RPM, vertical-speed and pitch panels.
+    ``ax`` may give six Axes to draw into; otherwise a new Figure is made without pyplot (no
+    display is needed; it renders with Agg on ``savefig``).
+    """
+    if ax is None:
+        fig = Figure(figsize=(11, 13), layout="constrained")
+        axes = list(fig.subplots(len(PLOT_PANELS), 1, sharex=True))
+    else:
+        axes = list(ax)
+        if len(axes) != len(PLOT_PANELS):
+            raise ValueError(f"plot_log needs {len(PLOT_PANELS)} axes, got {len(axes)}")
+        fig = axes[0].figure
+
+    d = log.data
+    tm = d["time_s"].to_numpy(float) / 60.0
+
+    def col(name: str) -> np.ndarray:
+        return pd.to_numeric(d[name], errors="coerce").to_numpy(float) if name in d else \
+            np.full(len(d), np.nan)
+
+    hp = pressure_altitude_ft(col("AltB"), col("BaroA"))
+    ktas = ktas_from_kcas(kcas_from_kias(col("IAS")), hp, col("OAT"))
+    a_alt, a_spd, a_vs, a_pitch, a_rpm, a_ff = axes
+    a_alt.plot(tm, col("AltB"), lw=0.8, label="AltB")
+    a_alt.plot(tm, hp, lw=0.8, ls="--", label="pressure altitude")
+    a_alt.set_ylabel("altitude [ft]")
+    a_spd.plot(tm, col("IAS"), lw=0.8, label="IAS")
+    if "TAS" in d:
+        a_spd.plot(tm, col("TAS"), lw=0.8, label="TAS (logged)")
+    a_spd.plot(tm, ktas, lw=0.8, ls="--", label="KTAS (computed)")
+    a_spd.set_ylabel("airspeed [kt]")
+    a_vs.plot(tm, col("VSpd"), lw=0.6, label="VSpd")
+    a_vs.set_ylabel("vertical speed [ft/min]")
+    a_pitch.plot(tm, col("Pitch"), lw=0.6, label="Pitch")
+    a_pitch.set_ylabel("pitch [deg]")
+    a_rpm.plot(tm, col("E1 RPM"), lw=0.8, label="E1 RPM")
+    a_rpm.set_ylabel("engine speed [rpm]")
+    a_ff.plot(tm, col("E1 FFlow"), lw=0.8, label="E1 FFlow")
+    a_ff.set_ylabel("fuel flow [gal/h]")
+    a_ff.set_xlabel("time since start of log [min]")
+
+    shaded: set[str] = set()
+    for k, s in enumerate(segments, start=1):
+        colour = _SEGMENT_COLOURS.get(s.kind, "tab:grey")
+        for a in axes:
+            label = f"{s.kind} segment" if (a is a_alt and s.kind not in shaded) else None
+            a.axvspan(s.t_start_s / 60.0, s.t_end_s / 60.0, color=colour, alpha=0.25, lw=0,
+                      label=label)
+        shaded.add(s.kind)
+        a_alt.annotate(f"{s.kind[:2]}{k}", xy=((s.t_start_s + s.t_end_s) / 120.0, 1.0),
+                       xycoords=("data", "axes fraction"), ha="center", va="bottom", fontsize=7)
+
+    if model is not None and len(model):
+        missing = [c for c in ("t_start_s", "rpm", "roc_fpm", "pitch_deg") if c not in model]
+        if missing:
+            raise ValueError("model DataFrame lacks column(s): " + ", ".join(missing))
+        starts = np.array([s.t_start_s for s in segments], dtype=float)
+        labelled = False
+        for _, row in model.iterrows():
+            t_start = float(row["t_start_s"])
+            k = int(np.argmin(np.abs(starts - t_start))) if starts.size else -1
+            if k >= 0 and abs(starts[k] - t_start) <= 1.0:
+                t_a, t_b = segments[k].t_start_s / 60.0, segments[k].t_end_s / 60.0
+            else:
+                t_a = t_b = t_start / 60.0
+            for a, name in ((a_rpm, "rpm"), (a_vs, "roc_fpm"), (a_pitch, "pitch_deg")):
+                v = float(row[name])
+                if not math.isfinite(v):
+                    continue
+                a.plot([t_a, t_b], [v, v], color="k", lw=1.5)
+                a.plot([(t_a + t_b) / 2.0], [v], "kD", ms=5,
+                       label="model" if not labelled and a is a_rpm else None)
+            labelled = True
+
+    for a in axes:
+        a.grid(True, lw=0.3)
+        if a.get_legend_handles_labels()[0]:
+            a.legend(loc="upper right", fontsize=7)
+    title = log.airframe.get("airframe_name", "G1000 log")
+    fig.suptitle(f"{title}: {Path(log.path).name}", fontsize=10)
+    return fig

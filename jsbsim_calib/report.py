@@ -1,11 +1,14 @@
 """Markdown reports with PNG figures (reports/<aircraft>/<stage>.md)."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from . import plots
+from .evaluate import format_summary
 from .factors import REGISTRY
 from .jsbsim.probes import aero_curves
 from .jsbsim.product import AircraftPaths, propeller_tables
@@ -316,3 +319,42 @@ def _offsets(result) -> list[str]:
 
 def _safe(s: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in s)
+
+
+# --------------------------------------------------------------------------- G1000 logs
+def model_table(evaluation) -> pd.DataFrame:
+    """Model values per segment (for :func:`jsbsim_calib.plots.plot_log`)."""
+    rows = []
+    for p in evaluation.points:
+        rows.append({"t_start_s": p.inputs["t_start_s"], "rpm": p.model.get("rpm", math.nan),
+                     "roc_fpm": p.model.get("roc_fpm", math.nan), "pitch_deg": p.model.get("pitch_deg", math.nan)})
+    return pd.DataFrame(rows)
+
+
+def write_log_report(evaluation, out_dir: Path) -> tuple[Path, Path]:
+    """A figure of the log with its segments and the model, and a Markdown table."""
+    ds = evaluation.dataset
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stem = ds.path.stem if ds.path.stem.startswith("log") else f"log_{ds.path.stem}"
+    fig = plots.plot_log(ds.extra["log"], ds.extra["segments"], model=model_table(evaluation))
+    png = out_dir / f"{stem}.png"
+    fig.savefig(png, dpi=90)
+    L = [f"# {evaluation.aircraft}: G1000 log {ds.path.name}", "",
+         f"{len(ds)} quasi-steady segments ({int((ds.frame['kind'] == 'cruise').sum())} level cruise, "
+         f"{int((ds.frame['kind'] == 'climb').sum())} full-throttle climbs); {ds.extra['weight_note']}.", "",
+         "Cruise: level flight at the logged true airspeed, best-power mixture -> RPM. Climbs: full throttle at "
+         "the logged calibrated airspeed, mixture per the POH -> rate of climb. Pitch for both.", "",
+         "```", format_summary(evaluation.summary()), "```", "",
+         "| # | kind | start min | s | Hp ft | OAT C | KTAS | VS fpm | weight lb | RPM log | model | pitch log | "
+         "model | ROC log | model |", "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for p in evaluation.points:
+        r = p.inputs
+        f = lambda v, d=0: "-" if v is None or not np.isfinite(v) else f"{v:.{d}f}"
+        L.append(f"| {r['segment']} | {r['kind']} | {r['t_start_s'] / 60:.1f} | {r['duration_s']:.0f} | "
+                 f"{r['pressure_alt_ft']:.0f} | {r['oat_c']:.1f} | {r['ktas']:.1f} | {r['vs_fpm']:+.0f} | "
+                 f"{r['weight_lb']:.0f} | {f(r['rpm'])} | {f(p.model.get('rpm'))} | {r['pitch_deg']:.1f} | "
+                 f"{f(p.model.get('pitch_deg'), 1)} | {f(r['roc_fpm'])} | {f(p.model.get('roc_fpm'))} |")
+    L += ["", f"![log]({png.name})", ""]
+    md = out_dir / f"{stem}.md"
+    md.write_text("\n".join(L) + "\n")
+    return png, md

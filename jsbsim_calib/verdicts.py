@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Mapping
 
-from .data import METRICS
+from .data.schemas import METRICS
 
 
 @dataclass(frozen=True)

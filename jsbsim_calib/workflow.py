@@ -17,12 +17,13 @@ from typing import Callable
 
 from .jsbsim.product import load_aircraft_geometry
 from .calibrate import TRIM_STEPS, FitResult, TrimStep, stage1_subset, steady_stage, trims_stage
-from .data import METRICS, Dataset, load_dataset
+from .data.load import load_dataset
+from .data.schemas import METRICS, Dataset
 from .errors import ModelError
 from .evaluate import Evaluation, PointResult, evaluate_dataset, summarize
 from .factors import FactorSet, set_in
 from .jsbsim.simulator import Simulator
-from .flighttest import QuirkWarning
+from .data.flighttest import QuirkWarning
 
 
 @dataclass

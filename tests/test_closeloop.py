@@ -20,11 +20,11 @@ from lxml import etree
 
 from jsbsim_calib.jsbsim import xml
 from jsbsim_calib.closeloop import close_loop, write_aircraft
-from jsbsim_calib.data import load_dataset
+from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.effects import library
 from jsbsim_calib.jsbsim.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.flighttest import QuirkWarning
+from jsbsim_calib.data.flighttest import QuirkWarning
 from jsbsim_calib.synth import synthesize, write_csv
 
 REPO = Path(__file__).resolve().parents[1]

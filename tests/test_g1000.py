@@ -12,23 +12,16 @@ import pandas as pd
 import pytest
 
 from jsbsim_calib.errors import DataError
-from jsbsim_calib.g1000 import (
-    PLOT_PANELS,
-    REQUIRED_CHANNELS,
-    G1000DataWarning,
-    G1000Log,
+from jsbsim_calib.data.g1000.parse import REQUIRED_CHANNELS, G1000DataWarning, G1000Log, read_g1000
+from jsbsim_calib.data.g1000.segments import (
     Segment,
     SegmentCriteria,
     WeightAssumption,
     extract_segments,
-    isa_temperature_c,
-    kcas_from_kias,
-    ktas_from_kcas,
-    plot_log,
-    pressure_altitude_ft,
-    read_g1000,
     segments_dataframe,
 )
+from jsbsim_calib.physics.atmosphere import isa_temperature_c, kcas_from_kias, ktas_from_kcas, pressure_altitude_ft
+from jsbsim_calib.plots import PLOT_PANELS, plot_log
 
 REAL_LOG = Path(__file__).resolve().parents[1] / "data" / "g1000" / "log_110812_095915_KCKN.csv"
 

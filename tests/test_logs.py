@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from jsbsim_calib.data import load_dataset
+from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.errors import DataError
 from jsbsim_calib.workflow import run_close_loop
 

@@ -21,11 +21,11 @@ import pytest
 
 from jsbsim_calib.jsbsim.product import AircraftPaths
 from jsbsim_calib.calibrate import STEADY_NAMES
-from jsbsim_calib.data import METRICS
+from jsbsim_calib.data.schemas import METRICS
 from jsbsim_calib.evaluate import evaluate_dataset
 from jsbsim_calib.factors import REGISTRY, FactorSet
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.flighttest import QuirkWarning
+from jsbsim_calib.data.flighttest import QuirkWarning
 from jsbsim_calib.workflow import aircraft_data, run_steady, run_trims, steady_factors
 
 REPO = Path(__file__).resolve().parents[1]

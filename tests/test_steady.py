@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from jsbsim_calib.calibrate import PointSet, fit, point_residuals
-from jsbsim_calib.data import load_dataset
+from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.errors import DataError
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.jsbsim.simulator import Simulator

@@ -20,13 +20,13 @@ import pandas as pd
 import pytest
 
 from jsbsim_calib.calibrate import Residual, TrimStep, trims_stage
-from jsbsim_calib.data import load_dataset
+from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.errors import DataError
 from jsbsim_calib.evaluate import KINDS, evaluate_dataset
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.jsbsim.condition import Condition, TrimResult
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.flighttest import (QuirkWarning, load_control_travel, snapshot_value, to_data_sign,
+from jsbsim_calib.data.flighttest import (QuirkWarning, load_control_travel, snapshot_value, to_data_sign,
                                      to_jsbsim_sign)
 from jsbsim_calib.workflow import steady_factors
 

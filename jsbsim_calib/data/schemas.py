@@ -1,6 +1,5 @@
-"""Reference data: schemas, loading and up-front validation.
+"""Reference data: columns, metrics with their tolerances, datasets, and up-front validation.
 
-A data file is recognised by its columns (or, for a Garmin G1000 log, its first line).
 Every problem is reported at once with the file, the CSV line, the data row and the
 column. Extra columns are ignored; ``thesis_model_*`` columns are kept aside as
 comparison values, never as targets.
@@ -13,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .errors import DataError, Problem
+from ..errors import DataError, Problem
 
 
 @dataclass(frozen=True)
@@ -64,37 +63,6 @@ class Schema:
             if c.name == name:
                 return c
         return None
-
-
-SCHEMAS: dict[str, Schema] = {
-    "poh_climb": Schema(
-        "poh_climb", "POH maximum rate of climb: full throttle at the given pressure altitude, temperature, KIAS",
-        (Column("pressure_alt_ft", -2000, 30000, "ft"), Column("kias", 30, 250, "kt"),
-         Column("weight_lb", 300, 20000, "lb"), Column("roc_fpm", -3000, 5000, "ft/min"),
-         Column("oat_c", -70, 60, "deg C", required=False), Column("temp_dev_c", -60, 60, "deg C", required=False),
-         Column("flaps_deg", 0, 50, "deg", required=False)),
-        ("roc_fpm",), one_of=(("oat_c", "temp_dev_c"),)),
-    "poh_cruise": Schema(
-        "poh_cruise", "POH cruise: level flight at pressure altitude, temperature and KTAS",
-        (Column("pressure_alt_ft", -2000, 30000, "ft"), Column("ktas", 30, 300, "kt"),
-         Column("weight_lb", 300, 20000, "lb"), Column("rpm", 500, 4000, "rpm", required=False),
-         Column("pct_power", 0, 130, "%", required=False), Column("gph", 0, 60, "US gal/h", required=False),
-         Column("oat_c", -70, 60, "deg C", required=False), Column("temp_dev_c", -60, 60, "deg C", required=False),
-         Column("flaps_deg", 0, 50, "deg", required=False)),
-        ("rpm", "pct_power", "gph"), one_of=(("oat_c", "temp_dev_c"), ("rpm", "pct_power", "gph"))),
-}
-
-
-def _kind_of(columns: set[str]) -> str | None:
-    if {"vs_fpm", "pitch_deg"} <= columns:
-        return "snapshot"
-    if "roc_fpm" in columns and "ktas" in columns:
-        return "flap_climb"
-    if "roc_fpm" in columns:
-        return "poh_climb"
-    if "ktas" in columns or ({"rpm", "pct_power", "gph"} & columns):
-        return "poh_cruise"
-    return None
 
 
 @dataclass
@@ -177,36 +145,10 @@ def validate_frame(raw: pd.DataFrame, schema: Schema, path: Path) -> pd.DataFram
     return out
 
 
-def load_dataset(path: str | Path, kind: str | None = None, *, control_travel: str | Path | None = None,
-                 geometry=None) -> Dataset:
-    """Load and validate a data file of any kind.
-
-    ``control_travel``: the aircraft's control-travel table; with it, flight-test snapshots
-    are also checked for surfaces that disagree with their cockpit controls. ``geometry``:
-    the aircraft, needed for a G1000 log (its empty weight enters the weight estimate).
-    """
-    path = Path(path)
-    if path.is_file():
-        with open(path, "rb") as fh:
-            head = fh.read(64)
-        if head.lstrip().startswith(b"#airframe_info"):
-            if geometry is None:
-                raise DataError(path, "a G1000 log is evaluated for an aircraft: its empty weight enters the "
-                                      "weight estimate (pass geometry=...)")
-            from .logs import log_dataset
-            return log_dataset(path, geometry)
-    raw = read_csv_checked(path)
-    cols = {c.strip() for c in raw.columns}
-    kind = kind or _kind_of(cols)
-    if kind is None:
-        raise DataError(path, [Problem("columns", "cannot tell the kind of data from the columns "
-                                       f"{sorted(cols)}; expected a POH climb (kias, roc_fpm, ...), POH cruise "
-                                       "(ktas, rpm/pct_power/gph, ...), flight-test snapshot or flap-climb file")])
-    if kind in ("snapshot", "flap_climb"):
-        from .flighttest import load_flight_test
-        return load_flight_test(path, raw, kind, control_travel)
-    schema = SCHEMAS[kind]
-    frame = validate_frame(raw, schema, path)
-    ref = raw[[c for c in raw.columns if c.strip().startswith("thesis_model_")]].copy()
-    metrics = tuple(m for m in schema.metrics if m in frame.columns)
-    return Dataset(kind, path, frame, ref, metrics)
+def reference_columns(raw: pd.DataFrame, rows=None) -> pd.DataFrame:
+    """The ``thesis_model_*`` columns of a raw file (comparison values, never targets), of
+    ``rows`` (a boolean mask) or all rows."""
+    cols = [c for c in raw.columns if c.strip().startswith("thesis_model_")]
+    if rows is None:
+        return raw[cols].copy()
+    return raw.loc[rows, cols].reset_index(drop=True)

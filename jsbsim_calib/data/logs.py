@@ -1,7 +1,7 @@
 """Garmin G1000 logs as reference data: segments -> trim conditions -> evaluation.
 
-A log is read and cut into quasi-steady segments by :mod:`jsbsim_calib.g1000` (criteria in
-:class:`~jsbsim_calib.g1000.SegmentCriteria`). Each segment becomes one data point:
+A log is read and cut into quasi-steady segments by :mod:`jsbsim_calib.data.g1000` (criteria in
+:class:`~jsbsim_calib.data.g1000.segments.SegmentCriteria`). Each segment becomes one data point:
 
 * level cruise: level flight (the segment's mean vertical speed) at its pressure altitude,
   OAT and true airspeed, best-power mixture (the pilot leaned) -> RPM and pitch attitude;
@@ -15,17 +15,18 @@ when the loading is known. The CG is the aircraft's default (its POH CG).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from .data import Dataset
-from .jsbsim.condition import Condition, TrimResult
-from .g1000 import SegmentCriteria, WeightAssumption, extract_segments, plot_log, read_g1000, segments_dataframe
-from .physics.geometry import AircraftGeometry
+from ..jsbsim.condition import Condition, TrimResult
+from ..physics.geometry import AircraftGeometry
+from ..units import LBM
+from .g1000.parse import read_g1000
+from .g1000.segments import SegmentCriteria, WeightAssumption, extract_segments, segments_dataframe
+from .schemas import Dataset
 
 METRICS = ("rpm", "roc_fpm", "pitch_deg")
 
@@ -44,7 +45,7 @@ def log_dataset(path: str | Path, geometry: AircraftGeometry, loading: LogLoadin
     """The quasi-steady segments of a log as a dataset of kind ``g1000``."""
     path = Path(path)
     log = read_g1000(path)
-    weight = WeightAssumption(empty_weight_lb=geometry.mass.empty_mass_kg / 0.45359237,
+    weight = WeightAssumption(empty_weight_lb=geometry.mass.empty_mass_kg / LBM,
                               occupants_lb=loading.occupants_lb, baggage_lb=loading.baggage_lb,
                               fuel_density_lb_per_gal=loading.fuel_density_lb_per_gal)
     segs = extract_segments(log, criteria, weight=weight)
@@ -76,50 +77,9 @@ def log_conditions(ds: Dataset, geom: AircraftGeometry) -> list[Condition]:
     return out
 
 
+# the trim outputs a log's metrics compare (the G1000's VSpd is the pressure-altitude rate)
+LOG_VALUES = {"rpm": "rpm", "roc_fpm": "roc_pressure_fpm", "pitch_deg": "theta_deg"}
+
+
 def log_value(metric: str, t: TrimResult) -> float:
-    if metric == "rpm":
-        return t.rpm
-    if metric == "roc_fpm":
-        return t.roc_pressure_fpm
-    if metric == "pitch_deg":
-        return t.theta_deg
-    raise KeyError(metric)
-
-
-def model_table(evaluation) -> pd.DataFrame:
-    """Model values per segment (for :func:`jsbsim_calib.g1000.plot_log`)."""
-    rows = []
-    for p in evaluation.points:
-        rows.append({"t_start_s": p.inputs["t_start_s"], "rpm": p.model.get("rpm", math.nan),
-                     "roc_fpm": p.model.get("roc_fpm", math.nan), "pitch_deg": p.model.get("pitch_deg", math.nan)})
-    return pd.DataFrame(rows)
-
-
-def write_log_report(evaluation, out_dir: Path) -> tuple[Path, Path]:
-    """A figure of the log with its segments and the model, and a Markdown table."""
-    from .evaluate import format_summary
-    ds = evaluation.dataset
-    out_dir.mkdir(parents=True, exist_ok=True)
-    stem = ds.path.stem if ds.path.stem.startswith("log") else f"log_{ds.path.stem}"
-    fig = plot_log(ds.extra["log"], ds.extra["segments"], model=model_table(evaluation))
-    png = out_dir / f"{stem}.png"
-    fig.savefig(png, dpi=90)
-    L = [f"# {evaluation.aircraft}: G1000 log {ds.path.name}", "",
-         f"{len(ds)} quasi-steady segments ({int((ds.frame['kind'] == 'cruise').sum())} level cruise, "
-         f"{int((ds.frame['kind'] == 'climb').sum())} full-throttle climbs); {ds.extra['weight_note']}.", "",
-         "Cruise: level flight at the logged true airspeed, best-power mixture -> RPM. Climbs: full throttle at "
-         "the logged calibrated airspeed, mixture per the POH -> rate of climb. Pitch for both.", "",
-         "```", format_summary(evaluation.summary()), "```", "",
-         "| # | kind | start min | s | Hp ft | OAT C | KTAS | VS fpm | weight lb | RPM log | model | pitch log | "
-         "model | ROC log | model |", "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for p in evaluation.points:
-        r = p.inputs
-        f = lambda v, d=0: "-" if v is None or not np.isfinite(v) else f"{v:.{d}f}"
-        L.append(f"| {r['segment']} | {r['kind']} | {r['t_start_s'] / 60:.1f} | {r['duration_s']:.0f} | "
-                 f"{r['pressure_alt_ft']:.0f} | {r['oat_c']:.1f} | {r['ktas']:.1f} | {r['vs_fpm']:+.0f} | "
-                 f"{r['weight_lb']:.0f} | {f(r['rpm'])} | {f(p.model.get('rpm'))} | {r['pitch_deg']:.1f} | "
-                 f"{f(p.model.get('pitch_deg'), 1)} | {f(r['roc_fpm'])} | {f(p.model.get('roc_fpm'))} |")
-    L += ["", f"![log]({png.name})", ""]
-    md = out_dir / f"{stem}.md"
-    md.write_text("\n".join(L) + "\n")
-    return png, md
+    return getattr(t, LOG_VALUES[metric])

@@ -40,13 +40,14 @@ import math
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pandas as pd
 
-from .data import Column, Dataset, validate_frame, Schema, read_csv_checked
-from .errors import DataError, Problem
-from .jsbsim.condition import Condition, TrimResult
+from ..errors import DataError, Problem
+from ..jsbsim.condition import Condition, TrimResult
+from .schemas import Column, Dataset, Schema, read_csv_checked, reference_columns, validate_frame
 
 # data sign = DATA_SIGN * JSBSim sign (and back: the map is its own inverse)
 DATA_SIGN = {"elevator": -1.0, "aileron": 1.0, "rudder": -1.0}
@@ -294,7 +295,7 @@ def load_snapshots(path: Path, raw: pd.DataFrame, control_travel: str | Path | N
     frame.insert(0, "table", labels)
     frame["line"] = np.arange(2, len(frame) + 2)
     usable = frame[~bad].reset_index(drop=True)
-    ref = raw.loc[~bad, [c for c in raw.columns if c.startswith("thesis_model_")]].reset_index(drop=True)
+    ref = reference_columns(raw, ~bad)
     return Dataset("snapshot", path, usable, ref, SNAPSHOT_METRICS,
                    extra={"quirks": quirks, "travel": travel, "rows": len(frame)})
 
@@ -302,7 +303,7 @@ def load_snapshots(path: Path, raw: pd.DataFrame, control_travel: str | Path | N
 def load_flap_climbs(path: Path, raw: pd.DataFrame) -> Dataset:
     frame = validate_frame(raw, FLAP_CLIMB_SCHEMA, path)
     frame.insert(0, "table", _labels(raw))
-    ref = raw[[c for c in raw.columns if c.strip().startswith("thesis_model_")]].copy()
+    ref = reference_columns(raw)
     return Dataset("flap_climb", path, frame, ref, ("roc_fpm",), extra={"quirks": [], "rows": len(frame)})
 
 
@@ -327,17 +328,19 @@ def snapshot_conditions(ds: Dataset, geom) -> list[Condition]:
     return out
 
 
+def _surface_value(surface: str) -> Callable[[TrimResult], float]:
+    return lambda t: to_data_sign(surface, getattr(t, SURFACE_METRICS[surface]))
+
+
+# what a snapshot's and a flaps-down climb's metrics compare: trim outputs, surfaces in the data's signs
+SNAPSHOT_OUTPUTS: dict[str, Callable[[TrimResult], float]] = {
+    "pitch_deg": lambda t: t.theta_deg, "roll_deg": lambda t: t.phi_deg,
+    **{m: _surface_value(s) for s, m in SURFACE_METRICS.items()}, "roc_fpm": lambda t: t.roc_fpm}
+FLAP_CLIMB_OUTPUTS = {m: SNAPSHOT_OUTPUTS[m] for m in ("roc_fpm", "pitch_deg")}
+
+
 def snapshot_value(metric: str, t: TrimResult) -> float:
-    if metric == "pitch_deg":
-        return t.theta_deg
-    if metric == "roll_deg":
-        return t.phi_deg
-    for surface, m in SURFACE_METRICS.items():
-        if metric == m:
-            return to_data_sign(surface, getattr(t, m))
-    if metric == "roc_fpm":
-        return t.roc_fpm
-    raise KeyError(metric)
+    return SNAPSHOT_OUTPUTS[metric](t)
 
 
 def flap_climb_conditions(ds: Dataset, geom) -> list[Condition]:
@@ -350,8 +353,4 @@ def flap_climb_conditions(ds: Dataset, geom) -> list[Condition]:
 
 
 def flap_climb_value(metric: str, t: TrimResult) -> float:
-    if metric == "roc_fpm":
-        return t.roc_fpm
-    if metric == "pitch_deg":
-        return t.theta_deg
-    raise KeyError(metric)
+    return FLAP_CLIMB_OUTPUTS[metric](t)
