@@ -10,8 +10,8 @@ import sys
 import time
 from pathlib import Path
 
-from jsbsim_calib.fdm import Simulator
-from jsbsim_calib.calibrate import steady_stage
+from jsbsim_calib.jsbsim.simulator import Simulator
+from jsbsim_calib.calibration.steady import steady_stage
 from jsbsim_calib.workflow import aircraft_data
 
 

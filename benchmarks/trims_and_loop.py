@@ -13,7 +13,7 @@ import warnings
 from pathlib import Path
 
 from jsbsim_calib.evaluate import evaluate_dataset
-from jsbsim_calib.fdm import Simulator
+from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.workflow import load_data_for, run_close_loop, run_trims
 
 
@@ -30,7 +30,6 @@ def main() -> None:
     loop = run_close_loop(root, "c172", root / "data" / "c172_flight_test_snapshots.csv", skip_steps=("pfactor",))
     print(f"close-loop (with stage 2a)  {time.perf_counter() - t1:.1f} s, loop alone {loop.wall_time_s:.1f} s, "
           f"{len(loop.candidates)} candidate fits, added {loop.added}")
-    loop.sim.close()
     with Simulator(root, "c172") as sim:
         t2 = time.perf_counter()
         ev = evaluate_dataset(sim, load_data_for(sim, root / "data" / "g1000" / "log_110812_095915_KCKN.csv"))

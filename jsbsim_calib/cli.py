@@ -1,8 +1,11 @@
-"""Command line: a thin layer over the library.
+"""Command line: a thin layer over the library (parse, call, write through the product and the
+reports, print).
 
     jsbsim-calib generate AIRCRAFT [--baseline]
-    jsbsim-calib calibrate AIRCRAFT --stage steady [--no-write] [--from current]
+    jsbsim-calib calibrate AIRCRAFT --stage steady|trims|all [--no-write] [--start current] [--skip STEP]
     jsbsim-calib evaluate AIRCRAFT --data FILE [--baseline] [--json OUT]
+    jsbsim-calib synth --truth AIRCRAFT_DIR --out FILE.csv [--seed N] [--points N] [--noise X]
+    jsbsim-calib close-loop AIRCRAFT --data FILE [--json OUT] [--skip STEP] [--out NAME]
     jsbsim-calib check AIRCRAFT [--json OUT]
     jsbsim-calib airfoil NAME
 """
@@ -12,9 +15,24 @@ import argparse
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
 
+from .calibration.closeloop import write_aircraft
+from .calibration.steady import steady_factors
 from .errors import CalibError
+from .evaluate import evaluate_dataset
+from .generate import generate
+from .jsbsim.probes import report
+from .jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration, write_calibrated
+from .jsbsim.simulator import Simulator
+from .physics.airfoil import regenerate
+from .report.markdown import (write_close_loop_report, write_evaluation_report, write_log_report,
+                              write_steady_report, write_trims_report)
+from .report.text import evaluation_table, format_stability, format_summary
+from .report.verdicts import format_verdicts, verdicts
+from .synth import synthesize, write_csv
+from .workflow import load_data_for, run_close_loop, run_steady, run_trims
 
 
 def _progress(quiet: bool):
@@ -29,7 +47,6 @@ def _progress(quiet: bool):
 
 
 def cmd_generate(a) -> int:
-    from .generate import generate
     g = generate(a.aircraft, Path(a.root), baseline=a.baseline, progress=_progress(a.quiet))
     for p in g.files:
         print(p)
@@ -37,10 +54,6 @@ def cmd_generate(a) -> int:
 
 
 def _calibrate_steady(a, root: Path, say):
-    from .jsbsim.product import AircraftPaths, read_calibration, write_calibrated
-    from .evaluate import format_summary
-    from .report import write_steady_report
-    from .workflow import run_steady
     start = read_calibration(AircraftPaths(root, a.aircraft)) if a.start == "current" else None
     res = run_steady(root, a.aircraft, start=start, progress=say)
     print(res.fit.report())
@@ -57,15 +70,11 @@ def _calibrate_steady(a, root: Path, say):
     if not a.no_write:
         files = write_calibrated(root, a.aircraft, res.factors, "steady", res.summary())
         print("written: " + ", ".join(str(f) for f in files))
-    print(f"report: {write_steady_report(res, root, Path(a.report_dir) / a.aircraft)}")
+    print(f"report: {write_steady_report(res, Path(a.report_dir) / a.aircraft)}")
     return res.factors, {k: e.summary() for k, e in res.calibrated.items()}
 
 
 def _calibrate_trims(a, root: Path, say, start=None):
-    from .evaluate import format_summary
-    from .report import write_trims_report
-    from .jsbsim.product import write_calibrated
-    from .workflow import run_trims, steady_factors
     res = run_trims(root, a.aircraft, skip=tuple(a.skip or ()), progress=say,
                     start=None if start is None else steady_factors(start))
     for r in res.steps:
@@ -90,8 +99,6 @@ def _calibrate_trims(a, root: Path, say, start=None):
 
 
 def cmd_calibrate(a) -> int:
-    from .jsbsim.product import load_aircraft_geometry
-    from .verdicts import format_verdicts, verdicts
     root = Path(a.root)
     say = _progress(a.quiet)
     factors, summaries, final = None, {}, ""
@@ -114,21 +121,16 @@ def cmd_calibrate(a) -> int:
 
 
 def cmd_evaluate(a) -> int:
-    from .evaluate import evaluate_dataset
-    from .jsbsim.simulator import Simulator
-    from .workflow import load_data_for
     with Simulator(Path(a.root), a.aircraft, baseline=a.baseline) as sim:
         ds = load_data_for(sim, a.data)
         ev = evaluate_dataset(sim, ds, model_kind="baseline" if a.baseline else "calibrated",
                               progress=None)
-    print(ev.table())
+    print(evaluation_table(ev))
     out_dir = Path(a.report_dir) / a.aircraft
     if ds.kind == "g1000":
-        from .report import write_log_report
         png, md = write_log_report(ev, out_dir)
         print(f"{ds.extra['weight_note']}\nplot: {png}")
     else:
-        from .report import write_evaluation_report
         md = write_evaluation_report(ev, out_dir)
     print(f"report: {md}")
     if a.json:
@@ -138,8 +140,6 @@ def cmd_evaluate(a) -> int:
 
 
 def cmd_synth(a) -> int:
-    from .jsbsim.simulator import Simulator
-    from .synth import synthesize, write_csv
     with Simulator.from_dir(Path(a.truth), Path(a.root)) as truth:
         rows, skipped = synthesize(truth, n=a.points, seed=a.seed, noise=a.noise, progress=_progress(a.quiet))
     write_csv(rows, Path(a.out))
@@ -150,21 +150,17 @@ def cmd_synth(a) -> int:
 
 
 def cmd_close_loop(a) -> int:
-    from .closeloop import write_aircraft
-    from .evaluate import format_summary
-    from .report import write_close_loop_report
-    from .workflow import run_close_loop
     root = Path(a.root)
     res = run_close_loop(root, a.aircraft, Path(a.data), skip_steps=tuple(a.skip or ()),
                          progress=_progress(a.quiet))
     s = res.summaries("all")
     print("before:")
-    print(format_summary(s["before"]))
+    print(format_summary(s.before))
     print("after:")
-    print(format_summary(s["after"]))
+    print(format_summary(s.after))
     print(f"added: {', '.join(res.added) or 'nothing'}")
     for u in res.unexplained():
-        print(f"unexplained: {u['metric']} correlates with {', '.join(u['correlates_with'][:3]) or 'no single state'}")
+        print(f"unexplained: {u.metric} correlates with {', '.join(u.correlates_with[:3]) or 'no single state'}")
     written = None
     if not a.no_write:
         written = write_aircraft(res, root, a.aircraft if a.in_place else (a.out or f"{a.aircraft}_loop"))
@@ -173,16 +169,13 @@ def cmd_close_loop(a) -> int:
     if a.json:
         Path(a.json).write_text(json.dumps(res.to_json(), indent=2, default=float) + "\n")
         print(f"json: {a.json}")
-    res.sim.close()
     return 0
 
 
 def cmd_check(a) -> int:
-    from .jsbsim.simulator import Simulator
-    from .jsbsim.probes import format_report, report
     with Simulator(Path(a.root), a.aircraft, baseline=a.baseline) as sim:
         rep = report(sim)
-    print(format_report(rep))
+    print(format_stability(rep))
     if a.json:
         Path(a.json).write_text(json.dumps(rep.as_dict(), indent=2) + "\n")
         print(f"json: {a.json}")
@@ -190,7 +183,6 @@ def cmd_check(a) -> int:
 
 
 def cmd_airfoil(a) -> int:
-    from .physics.airfoil import regenerate
     print(regenerate(a.name, Path(a.out)))
     return 0
 
@@ -266,7 +258,6 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 
 def main(argv=None) -> int:
-    import warnings
     warnings.showwarning = _show_warning
     args = build_parser().parse_args(argv)
     try:

@@ -8,6 +8,9 @@ and JSON schema are shared:
                  "trimmed": bool, "reason": str}],
      "summary": {metric: {"n", "rmse", "mape", "nmbe", "within_pct", "failed"}}}
 
+(:meth:`Evaluation.to_json`; the summary is typed, :class:`MetricSummary`, and
+:func:`summary_dict` gives its JSON). Text and Markdown tables are :mod:`jsbsim_calib.report`.
+
 Errors are model - data. ``mape``/``nmbe`` are percent of the data value (method eq.
 3.25-3.26); ``within_pct`` counts a failed trim as outside tolerance.
 """
@@ -15,9 +18,10 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
@@ -61,7 +65,33 @@ class PointResult:
     trim: TrimResult | None = None
 
 
-def summarize(points: Sequence[PointResult], metrics: Sequence[str]) -> dict:
+@dataclass(frozen=True)
+class MetricSummary:
+    """Accuracy of one metric over a dataset (method eq. 3.24-3.26); errors are model - data.
+    A statistic that cannot be computed (no trimmed point, no nonzero data value) is None."""
+
+    n: int                        # points with a data value for the metric
+    rmse: float | None            # root-mean-square error [the metric's unit]
+    mape: float | None            # mean absolute error [% of the data value]
+    nmbe: float | None            # mean bias error [% of the data value]
+    within_pct: float | None      # points within tolerance [%] (a failed trim counts as outside)
+    failed: int                   # points whose trim failed
+
+    def as_dict(self) -> dict:
+        """The JSON schema's keys: n, rmse, mape, nmbe, within_pct, failed."""
+        return {"n": self.n, "rmse": self.rmse, "mape": self.mape, "nmbe": self.nmbe, "within_pct": self.within_pct,
+                "failed": self.failed}
+
+
+Summary = dict[str, MetricSummary]          # by metric
+
+
+def summary_dict(summary: Mapping[str, MetricSummary]) -> dict[str, dict]:
+    """A summary in the JSON schema ``{metric: {"n", "rmse", "mape", "nmbe", "within_pct", "failed"}}``."""
+    return {m: s.as_dict() for m, s in summary.items()}
+
+
+def summarize(points: Sequence[PointResult], metrics: Sequence[str]) -> Summary:
     """RMSE, MAPE, nMBE, share within tolerance and failures per metric (method eq. 3.24-3.26)."""
     out = {}
     for m in metrics:
@@ -70,14 +100,14 @@ def summarize(points: Sequence[PointResult], metrics: Sequence[str]) -> dict:
         err = np.array([p.error[m] for p in ok])
         ref = np.array([p.inputs[m] for p in ok])
         nz = ref != 0
-        out[m] = {
-            "n": len(rows),
-            "rmse": float(np.sqrt(np.mean(err**2))) if len(ok) else None,
-            "mape": float(100 * np.mean(np.abs(err[nz] / ref[nz]))) if nz.any() else None,
-            "nmbe": float(100 * np.mean(err[nz] / ref[nz])) if nz.any() else None,
-            "within_pct": float(100.0 * sum(p.within.get(m, False) for p in rows) / len(rows)) if rows else None,
-            "failed": len(rows) - len(ok),
-        }
+        out[m] = MetricSummary(
+            n=len(rows),
+            rmse=float(np.sqrt(np.mean(err**2))) if len(ok) else None,
+            mape=float(100 * np.mean(np.abs(err[nz] / ref[nz]))) if nz.any() else None,
+            nmbe=float(100 * np.mean(err[nz] / ref[nz])) if nz.any() else None,
+            within_pct=float(100.0 * sum(p.within.get(m, False) for p in rows) / len(rows)) if rows else None,
+            failed=len(rows) - len(ok),
+        )
     return out
 
 
@@ -93,7 +123,7 @@ class Evaluation:
     def metrics(self) -> tuple[str, ...]:
         return self.dataset.metrics
 
-    def summary(self) -> dict:
+    def summary(self) -> Summary:
         return summarize(self.points, self.metrics)
 
     def to_json(self) -> dict:
@@ -117,7 +147,7 @@ class Evaluation:
                 d["reason"] = p.reason
             pts.append(d)
         out = {"aircraft": self.aircraft, "model": self.model_kind, "data": str(self.dataset.path),
-               "kind": self.dataset.kind, "points": pts, "summary": self.summary()}
+               "kind": self.dataset.kind, "points": pts, "summary": summary_dict(self.summary())}
         if "table" in self.dataset.extra:
             out["segments"] = [{k: clean(v) for k, v in r.items()}
                                for r in self.dataset.extra["table"].to_dict("records")]
@@ -141,75 +171,50 @@ class Evaluation:
             rows.append(r)
         return pd.DataFrame(rows)
 
-    def table(self) -> str:
-        """Plain-text table of every point and the summary."""
-        lines = []
-        shown = KINDS[self.dataset.kind].shown if self.dataset.kind in KINDS else None
-        inputs = list(shown) if shown else [c for c in self.dataset.frame.columns
-                                            if c not in self.metrics and c != "flaps_deg"]
-        head = " ".join(f"{c:>14}" for c in inputs) + "".join(f" {m + ' data':>14} {'model':>9} {'error':>8}"
-                                                              for m in self.metrics) + "  trim"
-        lines.append(head)
-        for p in self.points:
-            s = " ".join(_cell(p.inputs.get(c), 14, ".1f") for c in inputs)
-            for m in self.metrics:
-                if not _finite(p.inputs.get(m)):           # the metric does not apply to this point
-                    s += f" {'-':>14} {'-':>9} {'-':>8} "
-                    continue
-                mark = "" if p.within.get(m, False) else "*"
-                s += (f" {_cell(p.inputs.get(m), 14, '.2f')} {_cell(p.model.get(m), 9, '.2f')} "
-                      f"{_cell(p.error.get(m), 8, '+.2f')}{mark or ' '}")
-            s += "  ok" if p.trimmed else f"  FAILED: {p.reason}"
-            lines.append(s)
-        lines.append("")
-        lines.append(format_summary(self.summary()))
-        lines.append("(* outside tolerance)")
-        for q in self.dataset.extra.get("quirks", []):
-            lines.append(f"left out: {q}")
-        return "\n".join(lines)
 
-
-def _finite(v) -> bool:
-    return isinstance(v, (int, float, np.number)) and not isinstance(v, bool) and math.isfinite(float(v))
-
-
-def _cell(v, width: int, spec: str) -> str:
-    """A table cell: text as it is, whole numbers without decimals, '-' for a missing value."""
-    if isinstance(v, str):
-        return f"{v:>{width}}"
-    if not _finite(v):
-        return f"{'-':>{width}}"
-    if float(v).is_integer() and "+" not in spec:
-        return f"{int(v):>{width}d}"
-    return f"{format(float(v), spec):>{width}}"
-
-
-def format_summary(summary: dict) -> str:
-    lines = [f"{'metric':>12} {'n':>4} {'RMSE':>9} {'MAPE %':>8} {'nMBE %':>8} {'within %':>9} {'failed':>7}"]
-    for m, s in summary.items():
-        f = lambda v, fmt: (fmt % v) if v is not None else "-"
-        lines.append(f"{m:>12} {s['n']:4d} {f(s['rmse'], '%9.2f'):>9} {f(s['mape'], '%8.2f'):>8} "
-                     f"{f(s['nmbe'], '%8.2f'):>8} {f(s['within_pct'], '%9.1f'):>9} {s['failed']:7d}")
-    return "\n".join(lines)
+def compare_model(index: int, inputs: dict, model: Mapping[str, float], trimmed: bool, reason: str = "",
+                  trim: TrimResult | None = None) -> PointResult:
+    """A point's model values against its data: errors (model - data) and tolerance checks."""
+    error, within = {}, {}
+    for m, v in model.items():
+        ref = inputs[m]
+        error[m] = v - ref if np.isfinite(v) else np.nan
+        within[m] = bool(np.isfinite(v) and abs(v - ref) <= METRICS[m].tol_for(ref) + 1e-9)
+    return PointResult(index, inputs, dict(model), error, within, trimmed, reason, trim)
 
 
 def compare(index: int, inputs: dict, metrics: Sequence[str], t: TrimResult, value) -> PointResult:
-    model, error, within = {}, {}, {}
+    model = {}
     for m in metrics:
         ref = inputs.get(m, np.nan)
         if not np.isfinite(ref):
             continue
-        v = value(m, t) if t.trimmed else np.nan
-        model[m] = v
-        error[m] = v - ref if np.isfinite(v) else np.nan
-        within[m] = bool(np.isfinite(v) and abs(v - ref) <= METRICS[m].tol_for(ref) + 1e-9)
-    return PointResult(index, inputs, model, error, within, t.trimmed, t.reason, t)
+        model[m] = value(m, t) if t.trimmed else np.nan
+    return compare_model(index, inputs, model, t.trimmed, t.reason, t)
+
+
+def thesis_summary(ds: Dataset) -> Summary:
+    """Accuracy of the thesis's calibrated model on the same points (columns thesis_model_*)."""
+    pts = []
+    ref = ds.reference
+    for i, row in enumerate(ds.frame.to_dict("records")):
+        model = {}
+        for m in ds.metrics:
+            col = f"thesis_model_{m}"
+            if col not in ref.columns:
+                continue
+            try:
+                model[m] = float(ref[col].iloc[i])
+            except ValueError:
+                continue
+        pts.append(compare_model(i, row, model, bool(model)))
+    metrics = [m for m in ds.metrics if f"thesis_model_{m}" in ref.columns]
+    return summarize(pts, metrics) if metrics else {}
 
 
 def evaluate_dataset(sim: Simulator, ds: Dataset, *, model_kind: str = "calibrated",
                      progress: Callable[[int, int], None] | None = None) -> Evaluation:
     """Trim the model at every point of a dataset and compare."""
-    import time
     if ds.kind not in KINDS:
         raise ValueError(f"no evaluation for data of kind '{ds.kind}'")
     kind = KINDS[ds.kind]

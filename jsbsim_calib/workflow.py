@@ -1,10 +1,13 @@
-"""The calibration chain an aircraft goes through, and writing the calibrated product.
+"""The chains an aircraft goes through; each runs its stages and returns its results.
 
 ``run_steady`` evaluates the baseline on all POH points, runs stage 1 (16 factors, then
-K_FF), evaluates the result on all points, and returns a ``SteadyCalibration``.
-``write_product`` writes the factors into the aircraft XML (and re-bakes the propeller),
-with the record in ``aircraft/<name>/calibration.json``: ``load_model(name)`` is then the
-calibrated aircraft, and ``jsbsim-calib generate <name>`` reproduces the same bytes.
+K_FF), evaluates the result on all points, and returns a :class:`SteadyCalibration`;
+``run_trims`` runs stage 2a on the flight-test trims (:class:`TrimsCalibration`);
+``run_close_loop`` closes the loop on one data file
+(:class:`~jsbsim_calib.calibration.closeloop.CloseLoopResult`). Nothing here writes a file:
+the calibrated product is written by :func:`jsbsim_calib.jsbsim.product.write_calibrated`
+(after which ``load_model(name)`` is the calibrated aircraft and ``jsbsim-calib generate
+<name>`` reproduces the same bytes), the reports by :mod:`jsbsim_calib.report`.
 """
 from __future__ import annotations
 
@@ -14,62 +17,52 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-
-from .jsbsim.product import load_aircraft_geometry
-from .calibrate import TRIM_STEPS, FitResult, TrimStep, stage1_subset, steady_stage, trims_stage
-from .data.load import load_dataset
-from .data.schemas import METRICS, Dataset
-from .errors import ModelError
-from .evaluate import Evaluation, PointResult, evaluate_dataset, summarize
-from .factors import FactorSet, set_in
-from .jsbsim.simulator import Simulator
+from .calibration.closeloop import CloseLoopResult, close_loop
+from .calibration.fit import FitResult
+from .calibration.points import stage1_subset
+from .calibration.steady import steady_factors, steady_stage
+from .calibration.trims import TRIM_STEPS, TrimStep, trims_stage
 from .data.flighttest import QuirkWarning
+from .data.load import load_dataset
+from .data.schemas import Dataset
+from .errors import ModelError
+from .evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
+from .factors import FactorSet
+from .jsbsim.probes import AeroCurves, aero_curves
+from .jsbsim.product import AircraftPaths, load_aircraft_geometry, propeller_tables
+from .jsbsim.simulator import Simulator
+from .physics.propeller import PropellerTables
 
 
 @dataclass
 class SteadyCalibration:
+    """Stage 1: the fits, the evaluations of the baseline and the calibrated model on every POH
+    point, and the lift curves, drag polars and propeller tables of both models."""
+
     aircraft: str
     fit: FitResult
     fuel_flow: FitResult
     baseline: dict[str, Evaluation]
     calibrated: dict[str, Evaluation]
-    thesis: dict[str, dict]
+    thesis: dict[str, Summary]
     factors: FactorSet
     wall_time_s: float
     trims: int
     climb_points: list[int]
     cruise_points: list[int]
+    aero_curves: dict[str, AeroCurves]           # baseline, calibrated
+    propeller_tables: dict[str, PropellerTables]  # baseline, calibrated (BEM breakpoints)
 
     def summary(self) -> dict:
+        """The stage's record (calibration.json), JSON-safe."""
         return {
             "aircraft": self.aircraft,
             "fit": self.fit.summary(), "fuel_flow": self.fuel_flow.summary(),
-            "baseline": {k: e.summary() for k, e in self.baseline.items()},
-            "calibrated": {k: e.summary() for k, e in self.calibrated.items()},
-            "thesis": self.thesis,
+            "baseline": {k: summary_dict(e.summary()) for k, e in self.baseline.items()},
+            "calibrated": {k: summary_dict(e.summary()) for k, e in self.calibrated.items()},
+            "thesis": {k: summary_dict(s) for k, s in self.thesis.items()},
             "fitted_points": {"poh_climb": self.climb_points, "poh_cruise": self.cruise_points},
         }
-
-
-def thesis_summary(ds: Dataset) -> dict:
-    """Accuracy of the thesis's calibrated model on the same points (columns thesis_model_*)."""
-    pts = []
-    ref = ds.reference
-    for i, row in enumerate(ds.frame.to_dict("records")):
-        model, error, within = {}, {}, {}
-        for m in ds.metrics:
-            col = f"thesis_model_{m}"
-            if col not in ref.columns:
-                continue
-            try:
-                v = float(ref[col].iloc[i])
-            except ValueError:
-                continue
-            model[m], error[m] = v, v - row[m]
-            within[m] = abs(v - row[m]) <= METRICS[m].tol_for(row[m]) + 1e-9
-        pts.append(PointResult(i, row, model, error, within, bool(model)))
-    metrics = [m for m in ds.metrics if f"thesis_model_{m}" in ref.columns]
-    return summarize(pts, metrics) if metrics else {}
 
 
 def aircraft_data(root: Path, name: str, kinds=("poh_climb", "poh_cruise")) -> dict[str, Dataset]:
@@ -81,6 +74,14 @@ def aircraft_data(root: Path, name: str, kinds=("poh_climb", "poh_cruise")) -> d
     return {k: load_dataset(geom.data_files[k], control_travel=geom.control_travel_file) for k in kinds}
 
 
+def model_curves(root: Path, name: str, factors: FactorSet) -> tuple[dict[str, AeroCurves], dict[str, PropellerTables]]:
+    """Lift curve, drag polar and propeller tables of the baseline and of the model at ``factors``."""
+    with Simulator(root, name, baseline=True) as sb, Simulator(root, name, factors=factors) as sc:
+        curves = {"baseline": aero_curves(sb), "calibrated": aero_curves(sc)}
+    paths = AircraftPaths(root, name)
+    return curves, {"baseline": propeller_tables(paths, FactorSet()), "calibrated": propeller_tables(paths, factors)}
+
+
 def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
                progress: Callable[[str], None] | None = None) -> SteadyCalibration:
     """Stage 1 on the aircraft's POH data, with baseline and calibrated evaluations."""
@@ -89,19 +90,19 @@ def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
     say = progress or (lambda s: None)
     data = aircraft_data(root, name)
     climb, cruise = data["poh_climb"], data["poh_cruise"]
-    sim = Simulator(root, name, baseline=True)
-    say(f"baseline: trimming {len(climb) + len(cruise)} POH points")
-    baseline = {k: evaluate_dataset(sim, ds, model_kind="baseline") for k, ds in data.items()}
-    ci, ki = stage1_subset(climb), stage1_subset(cruise)
-    fit, ff = steady_stage(sim, climb, cruise, start=start, climb_points=ci, cruise_points=ki, progress=say)
-    sim.set_factors(ff.final)
-    say(f"calibrated: trimming {len(climb) + len(cruise)} POH points")
-    calibrated = {k: evaluate_dataset(sim, ds) for k, ds in data.items()}
-    trims = sim.trims
-    sim.close()
+    with Simulator(root, name, baseline=True) as sim:
+        say(f"baseline: trimming {len(climb) + len(cruise)} POH points")
+        baseline = {k: evaluate_dataset(sim, ds, model_kind="baseline") for k, ds in data.items()}
+        ci, ki = stage1_subset(climb), stage1_subset(cruise)
+        fit, ff = steady_stage(sim, climb, cruise, start=start, climb_points=ci, cruise_points=ki, progress=say)
+        sim.set_factors(ff.final)
+        say(f"calibrated: trimming {len(climb) + len(cruise)} POH points")
+        calibrated = {k: evaluate_dataset(sim, ds) for k, ds in data.items()}
+        trims = sim.trims
+    curves, tables = model_curves(root, name, ff.final)
     return SteadyCalibration(name, fit, ff, baseline, calibrated,
                              {k: thesis_summary(ds) for k, ds in data.items()}, ff.final,
-                             time.perf_counter() - t0, trims, ci, ki)
+                             time.perf_counter() - t0, trims, ci, ki, curves, tables)
 
 
 # --------------------------------------------------------------------------- stage 2a
@@ -121,7 +122,7 @@ class TrimsCalibration:
     evaluations: dict[str, dict[str, Evaluation]]
     poh_before: dict[str, Evaluation]
     poh_after: dict[str, Evaluation]
-    thesis: dict[str, dict]
+    thesis: dict[str, Summary]
     factors: FactorSet
     skipped: list[str]
     wall_time_s: float
@@ -132,21 +133,17 @@ class TrimsCalibration:
         return {k: e.dataset for k, e in self.evaluations["steady"].items()}
 
     def summary(self) -> dict:
+        """The stage's record (calibration.json), JSON-safe."""
         return {
             "aircraft": self.aircraft,
             "steps": [r.summary() for r in self.steps], "skipped_steps": self.skipped,
-            "flight_test": {label: {k: e.summary() for k, e in ev.items()} for label, ev in self.evaluations.items()},
-            "thesis": self.thesis,
-            "poh_before": {k: e.summary() for k, e in self.poh_before.items()},
-            "poh_after": {k: e.summary() for k, e in self.poh_after.items()},
+            "flight_test": {label: {k: summary_dict(e.summary()) for k, e in ev.items()}
+                            for label, ev in self.evaluations.items()},
+            "thesis": {k: summary_dict(s) for k, s in self.thesis.items()},
+            "poh_before": {k: summary_dict(e.summary()) for k, e in self.poh_before.items()},
+            "poh_after": {k: summary_dict(e.summary()) for k, e in self.poh_after.items()},
             "left_out": [str(q) for ds in self.data.values() for q in ds.extra.get("quirks", [])],
         }
-
-
-def steady_factors(factors: FactorSet) -> FactorSet:
-    """Stage-1 factors kept, every later factor neutral: where stage 2a starts."""
-    stage1 = set_in(("steady", "fuel flow"))
-    return FactorSet({k: v for k, v in factors.items() if k in stage1})
 
 
 def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps: tuple[TrimStep, ...] = TRIM_STEPS,
@@ -165,31 +162,30 @@ def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps:
     data = aircraft_data(root, name, tuple(keys))
     ft = {ds.kind: ds for ds in data.values()}
     poh = aircraft_data(root, name)
-    sim = Simulator(root, name)
-    start = steady_factors(sim.factors) if start is None else start
     unknown = [s for s in skip if s not in {st.name for st in steps}]
     if unknown:
         raise ValueError(f"unknown step(s) {', '.join(unknown)}; steps: {', '.join(st.name for st in steps)}")
-    evaluations: dict[str, dict[str, Evaluation]] = {}
+    with Simulator(root, name) as sim:
+        start = steady_factors(sim.factors) if start is None else start
+        evaluations: dict[str, dict[str, Evaluation]] = {}
 
-    def evaluate(label: str, model_kind: str = "calibrated") -> None:
-        evaluations[label] = {k: evaluate_dataset(sim, ds, model_kind=model_kind) for k, ds in ft.items()}
+        def evaluate(label: str, model_kind: str = "calibrated") -> None:
+            evaluations[label] = {k: evaluate_dataset(sim, ds, model_kind=model_kind) for k, ds in ft.items()}
 
-    sim.set_factors(FactorSet())
-    evaluate("baseline", "baseline")
-    sim.set_factors(start)
-    evaluate("steady")
-    say(f"stage 1 model: trimming {sum(len(d) for d in poh.values())} POH points")
-    poh_before = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
-    run = tuple(st for st in steps if st.name not in skip)
-    results = trims_stage(sim, {**ft, **poh}, start=start, steps=run, progress=say,
-                          after_step=lambda st, res: evaluate(st.name))
-    final = results[-1].final if results else start
-    sim.set_factors(final)
-    say(f"stage 2a model: trimming {sum(len(d) for d in poh.values())} POH points")
-    poh_after = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
-    trims = sim.trims
-    sim.close()
+        sim.set_factors(FactorSet())
+        evaluate("baseline", "baseline")
+        sim.set_factors(start)
+        evaluate("steady")
+        say(f"stage 1 model: trimming {sum(len(d) for d in poh.values())} POH points")
+        poh_before = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
+        run = tuple(st for st in steps if st.name not in skip)
+        results = trims_stage(sim, {**ft, **poh}, start=start, steps=run, progress=say,
+                              after_step=lambda st, res: evaluate(st.name))
+        final = results[-1].final if results else start
+        sim.set_factors(final)
+        say(f"stage 2a model: trimming {sum(len(d) for d in poh.values())} POH points")
+        poh_after = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
+        trims = sim.trims
     return TrimsCalibration(name, results, evaluations, poh_before, poh_after,
                             {k: thesis_summary(ds) for k, ds in ft.items()}, final, list(skip),
                             time.perf_counter() - t0, trims)
@@ -197,26 +193,24 @@ def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps:
 
 # --------------------------------------------------------------------------- close the loop
 def run_close_loop(root: Path | str, name: str, data: Path | str, *, skip_steps: tuple[str, ...] = (),
-                   progress: Callable[[str], None] | None = None):
-    """Close the loop on an aircraft with one data file (:func:`jsbsim_calib.closeloop.close_loop`).
+                   progress: Callable[[str], None] | None = None) -> CloseLoopResult:
+    """Close the loop on an aircraft with one data file (:func:`jsbsim_calib.calibration.closeloop.close_loop`).
 
     ``skip_steps``: first rerun stage 2a from the aircraft's stage-1 factors without these
     steps (e.g. ``("pfactor",)``: let the loop find what the step would have fitted)."""
-    from .closeloop import close_loop
     root = Path(root)
     say = progress or (lambda s: None)
-    sim = Simulator(root, name)
-    start = sim.factors
-    if skip_steps:
-        say(f"stage 2a without {', '.join(skip_steps)}")
-        with warnings.catch_warnings():       # its rows left out are reported when the loop's data load
-            warnings.simplefilter("ignore", QuirkWarning)
-            start = run_trims(root, name, skip=tuple(skip_steps), progress=say).factors
-        sim.set_factors(start)
-    ds = load_data_for(sim, data)
-    res = close_loop(sim, ds, progress=say)
+    with Simulator(root, name) as sim:
+        start = sim.factors
+        if skip_steps:
+            say(f"stage 2a without {', '.join(skip_steps)}")
+            with warnings.catch_warnings():       # its rows left out are reported when the loop's data load
+                warnings.simplefilter("ignore", QuirkWarning)
+                start = run_trims(root, name, skip=tuple(skip_steps), progress=say).factors
+            sim.set_factors(start)
+        ds = load_data_for(sim, data)
+        res = close_loop(sim, ds, progress=say)
     res.notes.append(f"model: {name}" + (f", stage 2a rerun without {', '.join(skip_steps)}" if skip_steps else ""))
-    sim.close()
     return res
 
 

@@ -19,9 +19,9 @@ import pytest
 from lxml import etree
 
 from jsbsim_calib.jsbsim import xml
-from jsbsim_calib.closeloop import close_loop, write_aircraft
+from jsbsim_calib.calibration.closeloop import close_loop, write_aircraft
 from jsbsim_calib.data.load import load_dataset
-from jsbsim_calib.effects import library
+from jsbsim_calib.calibration.effects import library
 from jsbsim_calib.jsbsim.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import QuirkWarning
@@ -70,7 +70,7 @@ def _first(res, rnd: int = 1):
 
 
 def _within(res) -> dict[str, float]:
-    return {m: s["within_pct"] for m, s in res.summaries("all")["after"].items()}
+    return {m: s.within_pct for m, s in res.summaries("all").after.items()}
 
 
 # --------------------------------------------------------------------------- library and synth
@@ -125,11 +125,10 @@ def test_an_undeclared_library_effect_is_found_first_and_closes_the_residual(tmp
     assert _first(res).effect == effect
     assert res.added[0] == effect and len(res.added) == 1, res.added
     affected = library()[effect].affects
-    before = res.summaries("all")["before"]
-    assert any(before[m]["within_pct"] < 100.0 or before[m]["rmse"] > 0.3 for m in affected if m in before)
+    before = res.summaries("all").before
+    assert any(before[m].within_pct < 100.0 or before[m].rmse > 0.3 for m in affected if m in before)
     assert all(v == 100.0 for v in _within(res).values()), _within(res)
     assert not res.unexplained()
-    res.sim.close()
 
 
 def test_a_pair_of_undeclared_effects_is_found(tmp_path, clean):
@@ -140,7 +139,6 @@ def test_a_pair_of_undeclared_effects_is_found(tmp_path, clean):
     assert set(res.added) == {"control_rigging_offset_rudder", "cg_offset"}, \
         [(c.effect, c.round, c.reason) for c in res.candidates]
     assert all(v == 100.0 for v in _within(res).values())
-    res.sim.close()
 
 
 def test_null_truth_adds_nothing_and_the_cli_writes_json_and_a_loadable_aircraft(tmp_path):
@@ -175,9 +173,8 @@ def test_an_effect_outside_the_library_is_reported_not_attributed(tmp_path, clea
     ds = snapshots(tmp_path, make_truth(tmp_path, {}, roll), 14)
     res = close_loop(clean, ds)
     assert res.added == [], [(c.effect, c.share, c.reason) for c in res.candidates if c.round == 1]
-    un = {u["metric"]: u["correlates_with"] for u in res.unexplained()}
+    un = {u.metric: u.correlates_with for u in res.unexplained()}
     assert "aileron_deg" in un and "flaps" in un["aileron_deg"][:3], un
-    res.sim.close()
 
 
 def test_written_aircraft_flies_like_the_closed_loop_model(tmp_path, clean):
@@ -190,11 +187,10 @@ def test_written_aircraft_flies_like_the_closed_loop_model(tmp_path, clean):
     path = write_aircraft(res, root, "c172_rig")
     assert "effect: control_rigging_offset_rudder" in path.read_text()
     cond = Condition(5000.0, 2400.0, ktas=105.0, mode="level")
-    with Simulator(root, "c172_rig") as again:
+    with Simulator(root, "c172_rig") as again, res.simulator() as loop:
         assert again.effects == ["control_rigging_offset_rudder"]
-        a, b = again.trim(cond), res.sim.trim(cond)
+        a, b = again.trim(cond), loop.trim(cond)
         assert a.rudder_deg == pytest.approx(b.rudder_deg, abs=1e-6)
-    res.sim.close()
 
 
 # --------------------------------------------------------------------------- real data
@@ -204,19 +200,18 @@ def test_real_c172_trims_without_pfactor_step_find_the_yaw_effect(tmp_path):
     s = res.summaries("all")
     assert res.added[:1] == ["p_factor"], [(c.effect, c.round, c.reason) for c in res.candidates]
     # measured: rudder RMSE 1.49 -> 0.75 deg, within +-1 deg 33 -> 78 %
-    assert s["before"]["rudder_deg"]["rmse"] > 1.3 and s["after"]["rudder_deg"]["rmse"] < 0.8
-    assert s["after"]["rudder_deg"]["within_pct"] >= 77.0
-    assert s["after"]["aileron_deg"]["within_pct"] == 100.0
-    res.sim.close()
+    assert s.before["rudder_deg"].rmse > 1.3 and s.after["rudder_deg"].rmse < 0.8
+    assert s.after["rudder_deg"].within_pct >= 77.0
+    assert s.after["aileron_deg"].within_pct == 100.0
 
 
 # --------------------------------------------------------------------------- NaN never passes
 def test_no_evidence_test_accepts_a_nan():
     """Each evidence test of the close-loop, fed a NaN in any of its quantities, refuses; a
     metric whose noise could not be estimated weighs with its tolerance, not with NaN."""
-    from jsbsim_calib.closeloop import (MIN_EVIDENCE, evidence_failures, noise_in_tolerances,
+    from jsbsim_calib.calibration.closeloop import (MIN_EVIDENCE, evidence_failures, noise_in_tolerances,
                                         pays_off_out_of_sample)
-    from jsbsim_calib.diagnose import MetricDiagnosis
+    from jsbsim_calib.calibration.diagnose import MetricDiagnosis
     nan = float("nan")
     passing = dict(delta_bic=-2 * MIN_EVIDENCE, material=1.0, structure=1.0, share=0.9)
     assert evidence_failures(**passing) == []

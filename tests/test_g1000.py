@@ -21,7 +21,7 @@ from jsbsim_calib.data.g1000.segments import (
     segments_dataframe,
 )
 from jsbsim_calib.physics.atmosphere import isa_temperature_c, kcas_from_kias, ktas_from_kcas, pressure_altitude_ft
-from jsbsim_calib.plots import PLOT_PANELS, plot_log
+from jsbsim_calib.report.plots import PLOT_PANELS, plot_log
 
 REAL_LOG = Path(__file__).resolve().parents[1] / "data" / "g1000" / "log_110812_095915_KCKN.csv"
 

@@ -20,13 +20,13 @@ import numpy as np
 import pytest
 
 from jsbsim_calib.jsbsim.product import AircraftPaths
-from jsbsim_calib.calibrate import STEADY_NAMES
+from jsbsim_calib.calibration.steady import STEADY_NAMES, steady_factors
 from jsbsim_calib.data.schemas import METRICS
 from jsbsim_calib.evaluate import evaluate_dataset
 from jsbsim_calib.factors import REGISTRY, FactorSet
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import QuirkWarning
-from jsbsim_calib.workflow import aircraft_data, run_steady, run_trims, steady_factors
+from jsbsim_calib.workflow import aircraft_data, run_steady, run_trims
 
 REPO = Path(__file__).resolve().parents[1]
 PERTURBATION = 1e-8           # relative to the normalized range: a round-off-sized start change

@@ -6,7 +6,8 @@ import sys
 import numpy as np
 import pytest
 
-from jsbsim_calib.calibrate import PointSet, fit, point_residuals
+from jsbsim_calib.calibration.fit import fit
+from jsbsim_calib.calibration.points import PointSet, point_residuals
 from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.errors import DataError
 from jsbsim_calib.factors import FactorSet

@@ -19,7 +19,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from jsbsim_calib.calibrate import Residual, TrimStep, trims_stage
+from jsbsim_calib.calibration.points import Residual
+from jsbsim_calib.calibration.trims import TrimStep, trims_stage
 from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.errors import DataError
 from jsbsim_calib.evaluate import KINDS, evaluate_dataset
@@ -28,7 +29,7 @@ from jsbsim_calib.jsbsim.condition import Condition, TrimResult
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import (QuirkWarning, load_control_travel, snapshot_value, to_data_sign,
                                      to_jsbsim_sign)
-from jsbsim_calib.workflow import steady_factors
+from jsbsim_calib.calibration.steady import steady_factors
 
 REPO = Path(__file__).resolve().parents[1]
 SNAPSHOTS = REPO / "data" / "c172_flight_test_snapshots.csv"
@@ -187,7 +188,7 @@ def test_trim_steps_recover_known_factors_from_synthetic_snapshots(repo, tmp_pat
     assert final["K_PF"] == pytest.approx(2.0, abs=0.1)
     sim.set_factors(final)
     s = evaluate_dataset(sim, synth).summary()
-    assert all(s[m]["rmse"] < 0.05 for m in real.metrics), s
+    assert all(s[m].rmse < 0.05 for m in real.metrics), s
     sim.close()
 
 
@@ -213,8 +214,8 @@ def test_committed_c172_keeps_its_measured_flight_test_accuracy(repo):
         flap = evaluate_dataset(sim, load_dataset(repo / "data" / "c172_flight_test_flap_climb.csv")).summary()
     # measured: pitch 88.9 % / 0.61 deg, elevator 88.9 % / 0.68, aileron 100 % / 0.33, rudder
     # 72.2 % / 0.78, flaps-10 climbs 100 % / 48.8 fpm
-    assert snap["pitch_deg"]["within_pct"] >= 88.0 and snap["pitch_deg"]["rmse"] < 0.65
-    assert snap["elevator_deg"]["within_pct"] >= 88.0 and snap["elevator_deg"]["rmse"] < 0.72
-    assert snap["aileron_deg"]["within_pct"] == 100.0 and snap["aileron_deg"]["rmse"] < 0.37
-    assert snap["rudder_deg"]["within_pct"] >= 72.0 and snap["rudder_deg"]["rmse"] < 0.82
-    assert flap["roc_fpm"]["within_pct"] == 100.0 and flap["roc_fpm"]["rmse"] < 52.0
+    assert snap["pitch_deg"].within_pct >= 88.0 and snap["pitch_deg"].rmse < 0.65
+    assert snap["elevator_deg"].within_pct >= 88.0 and snap["elevator_deg"].rmse < 0.72
+    assert snap["aileron_deg"].within_pct == 100.0 and snap["aileron_deg"].rmse < 0.37
+    assert snap["rudder_deg"].within_pct >= 72.0 and snap["rudder_deg"].rmse < 0.82
+    assert flap["roc_fpm"].within_pct == 100.0 and flap["roc_fpm"].rmse < 52.0

@@ -487,34 +487,3 @@ def aero_curves(sim: Simulator, alphas_deg=np.arange(-6.0, 22.01, 1.0), ktas: fl
         CL.append(lift / q)
         CD.append(drag / q)
     return AeroCurves(np.asarray(alphas_deg, float), np.array(CL), np.array(CD))
-
-
-CHECK_COLUMNS = (("kcas", "KCAS", ".1f"), ("alpha_deg", "alpha", ".2f"), ("elevator_deg", "elev", ".2f"),
-                 ("CL_alpha", "CL_a", ".2f"), ("Cm_alpha", "Cm_a", ".3f"), ("static_margin", "SM", ".3f"),
-                 ("Cn_beta", "Cn_b", ".4f"), ("Cl_beta", "Cl_b", ".4f"), ("Cl_p", "Cl_p", ".3f"),
-                 ("Cm_q", "Cm_q", ".2f"), ("Cn_r", "Cn_r", ".4f"))
-
-
-def format_report(report: StabilityReport) -> str:
-    """The plausibility report (:func:`report`) as text tables, as ``check`` prints it."""
-    rep = report.as_dict()
-    lines = [f"{rep['aircraft']}: stability and control derivatives ({rep['axes']})",
-             f"{'condition':<16}" + "".join(f"{h:>9}" for _, h, _ in CHECK_COLUMNS)]
-    for name, d in rep["derivatives"].items():
-        if "error" in d:
-            lines.append(f"{name:<16} does not trim: {d['error']}")
-            continue
-        lines.append(f"{name:<16}" + "".join(f"{d[k]:>9{f}}" if isinstance(d.get(k), (int, float)) else f"{'-':>9}"
-                                             for k, _, f in CHECK_COLUMNS))
-    lines += ["", "Stall (power off: the lowest speed of a steady glide, elevator within its stops):",
-              f"{'weight lb':>10} {'CG in':>7} {'flaps':>6} {'KCAS':>7} {'KIAS':>7} {'CLmax':>7}  note"]
-    for s in rep["stall"]:
-        num = lambda v, f: f"{v:{f}}" if isinstance(v, (int, float)) else "-"
-        lines.append(f"{num(s.get('weight_lb'), '10.0f')} {num(s.get('cg_in'), '7.1f')} {num(s.get('flaps_deg'), '6.0f')} "
-                     f"{num(s.get('kcas'), '7.1f')} {num(s.get('kias'), '7.1f')} {num(s.get('cl_max'), '7.3f')}  "
-                     f"{s.get('reason', '')}")
-    changed = rep.get("factors_changed") or {}
-    lines.append("")
-    lines.append(f"factors away from neutral: {len(changed)}" + (" (" + ", ".join(f"{k} {v:.4g}" for k, v in changed.items())
-                                                                  + ")" if changed else ""))
-    return "\n".join(lines)

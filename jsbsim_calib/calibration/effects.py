@@ -1,10 +1,11 @@
 """The effect library: physical effects the baseline model lacks, as data.
 
-Each effect is one XML file in ``jsbsim_calib/effects/``: a description, the metrics it
-moves, its factor(s) (name, JSBSim property, neutral value, bounds, unit, doc) and the XML it
-adds to an aircraft (functions in a ``<system>``, moments in ``<aerodynamics>``), with
-placeholders for a few aircraft constants (:func:`constants`). Adding an effect to the
-library is adding a file; no code knows a particular effect.
+Each effect is one XML file in ``jsbsim_calib/calibration/effects/``: a description, the metrics it
+moves, its factor(s) (name, JSBSim property, neutral value, bounds, unit, doc: records of
+:class:`jsbsim_calib.factors.Factor` with step ``effect``) and the XML it adds to an aircraft
+(functions in a ``<system>``, moments in ``<aerodynamics>``), with placeholders for a few
+aircraft constants (:func:`jsbsim_calib.jsbsim.aircraft.effect_constants`). Adding an effect
+to the library is adding a file; no code knows a particular effect.
 
 Two conventions let effects change what is *measured* rather than what flies:
 
@@ -21,9 +22,9 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
-from .errors import ModelError
-from .factors import Factor
-from .jsbsim.xml import is_comment, parse
+from ..errors import ModelError
+from ..factors import Factor
+from ..jsbsim.xml import is_comment, parse
 
 LIBRARY_DIR = Path(__file__).resolve().parent / "effects"
 

@@ -16,10 +16,11 @@ from matplotlib.figure import Figure  # noqa: E402
 
 import pandas as pd  # noqa: E402
 
-from .data.g1000.parse import G1000Log  # noqa: E402
-from .data.g1000.segments import Segment  # noqa: E402
-from .data.schemas import METRICS  # noqa: E402
-from .physics.atmosphere import kcas_from_kias, ktas_from_kcas, pressure_altitude_ft  # noqa: E402
+from ..calibration.diagnose import REGRESSORS  # noqa: E402
+from ..data.g1000.parse import G1000Log  # noqa: E402
+from ..data.g1000.segments import Segment  # noqa: E402
+from ..data.schemas import METRICS  # noqa: E402
+from ..physics.atmosphere import kcas_from_kias, ktas_from_kcas, pressure_altitude_ft  # noqa: E402
 
 STYLES = {"baseline": dict(color="tab:gray", ls="--", lw=1.2), "calibrated": dict(color="tab:blue", ls="-", lw=1.6),
           "thesis": dict(color="tab:orange", ls=":", lw=1.2)}
@@ -164,7 +165,6 @@ def parity_panels(evals: Mapping[str, object], metric: str) -> Figure:
 def residuals_vs(before, after, metric: str, regressor: str) -> Figure:
     """Residual (model - data) of one metric against one regressor of the model's trims,
     before (grey) and after (blue) closing the loop, with the tolerance band."""
-    from .diagnose import REGRESSORS
     fig, ax = _ax(None, (4.8, 3.4))
     unit, f = REGRESSORS[regressor]
     tol = METRICS[metric].tol_for(1.0)

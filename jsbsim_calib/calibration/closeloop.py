@@ -3,7 +3,7 @@
 :func:`close_loop` works on any aircraft and any trim data (flight-test snapshots, flap
 climbs, POH climb/cruise):
 
-1. evaluate the model; diagnose the residuals (:mod:`jsbsim_calib.diagnose`);
+1. evaluate the model; diagnose the residuals (:mod:`jsbsim_calib.calibration.diagnose`);
 2. split the points: every :data:`HOLDOUT`-th is held out, the rest are fitted;
 3. for every library effect the model lacks (and that moves a metric of the data): add it
    to a copy of the aircraft, fit its factor(s) alone on the fitted points (residuals /
@@ -20,7 +20,7 @@ climbs, POH climb/cruise):
    the diagnosis estimates, in the structured metrics it moves; what it makes worse
    elsewhere counts against it): a library effect that only grazes an unknown effect is not
    attributed; then refit the added effects' factors together with the stage-2a factors
-   acting on the same metrics (:data:`METRIC_FACTORS`: fitted without the effect, they may
+   acting on the same metrics (:func:`companion_factors`: fitted without the effect, they may
    have stood in for it);
 5. repeat until no candidate passes; diagnose again: what is still structured is reported
    as unexplained, with the states it correlates with, not attributed.
@@ -29,20 +29,23 @@ from __future__ import annotations
 
 import math
 import time
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from .calibrate import FAIL_PENALTY, FitResult, fit
-from .data.schemas import METRICS, Dataset
-from .diagnose import MetricDiagnosis, diagnose
+from ..data.schemas import METRICS, Dataset
+from ..evaluate import KINDS, Evaluation, Summary, evaluate_dataset, summarize, summary_dict
+from ..factors import FactorSet, levers
+from ..jsbsim.product import AircraftPaths, write_derived
+from ..jsbsim.simulator import Simulator
+from ..jsbsim.xml import Tree
+from .diagnose import Correlate, MetricDiagnosis, diagnose
 from .effects import Effect, library
-from .evaluate import KINDS, Evaluation, evaluate_dataset
-from .factors import FactorSet, levers
-from .jsbsim.product import AircraftPaths, write_derived
-from .jsbsim.simulator import Simulator
+from .fit import FitResult, fit
+from .points import FAIL_PENALTY
 
 HOLDOUT = 4              # every 4th point is held out
 MIN_EVIDENCE = 10.0      # BIC decrease for "very strong" evidence (Kass & Raftery)
@@ -68,6 +71,7 @@ class Candidate:
     cv: tuple[float, float] | None = None  # cross-validated residual sum of squares, without and with
     accepted: bool = False
     reason: str = ""
+    affects: tuple[str, ...] = ()          # the metrics the effect moves
 
     @property
     def score(self) -> float:
@@ -82,9 +86,38 @@ class Candidate:
                 "accepted": self.accepted, "reason": self.reason}
 
 
+@dataclass(frozen=True)
+class BeforeAfter:
+    """Summaries of the same points before and after closing the loop."""
+
+    before: Summary
+    after: Summary
+
+    def as_dict(self) -> dict:
+        return {"before": summary_dict(self.before), "after": summary_dict(self.after)}
+
+
+@dataclass(frozen=True)
+class Unexplained:
+    """A metric whose residual is still structured after the loop, with the states it follows."""
+
+    metric: str
+    correlates_with: list[str]          # regressors, most significant first
+    reason: str
+    correlations: list[Correlate]
+
+    def as_dict(self) -> dict:
+        return {"metric": self.metric, "correlates_with": list(self.correlates_with), "reason": self.reason,
+                "correlations": [c.as_dict() for c in self.correlations]}
+
+
 @dataclass
 class CloseLoopResult:
+    """What the loop found and the aircraft it ends with (as a parsed file, its factors
+    including the added effects' own: no live simulator; :meth:`simulator` flies it)."""
+
     aircraft: str
+    root: Path                          # the JSBSim root the aircraft was loaded from
     dataset: Dataset
     fit_points: list[int]
     held_points: list[int]
@@ -96,31 +129,33 @@ class CloseLoopResult:
     added: list[str]
     refits: list[FitResult]
     factors: FactorSet
-    sim: Simulator
+    aircraft_tree: Tree
     wall_time_s: float
     notes: list[str] = field(default_factory=list)
 
-    def summaries(self, which: str) -> dict:
+    def summaries(self, which: str) -> BeforeAfter:
         """Summaries (schema of ``evaluate``) of 'all', 'fit' or 'held' points, before and after."""
-        from .evaluate import summarize
         idx = {"all": None, "fit": set(self.fit_points), "held": set(self.held_points)}[which]
         out = {}
         for label, ev in (("before", self.before), ("after", self.after)):
             pts = [p for p in ev.points if idx is None or p.index in idx]
             out[label] = summarize(pts, ev.metrics)
-        return out
+        return BeforeAfter(**out)
 
-    def unexplained(self) -> list[dict]:
-        return [{"metric": m, "correlates_with": [c.regressor for c in d.correlates], "reason": d.reason,
-                 "correlations": [c.as_dict() for c in d.correlates]}
+    def unexplained(self) -> list[Unexplained]:
+        return [Unexplained(m, [c.regressor for c in d.correlates], d.reason, list(d.correlates))
                 for m, d in self.diagnosis_after.items() if d.structured]
 
+    def simulator(self) -> Simulator:
+        """A simulator of the aircraft the loop ends with (use it in a ``with`` block)."""
+        return Simulator.with_aircraft(self.root, self.aircraft, self.aircraft_tree, self.factors)
+
     def to_json(self) -> dict:
-        s = self.summaries("all")
+        s = self.summaries("all").as_dict()
         return {"aircraft": self.aircraft, "data": str(self.dataset.path), "kind": self.dataset.kind,
                 "before": s["before"], "candidates": [c.as_dict() for c in self.candidates], "added": self.added,
-                "after": s["after"], "unexplained": self.unexplained(),
-                "fitted_points": self.summaries("fit"), "held_out_points": self.summaries("held"),
+                "after": s["after"], "unexplained": [u.as_dict() for u in self.unexplained()],
+                "fitted_points": self.summaries("fit").as_dict(), "held_out_points": self.summaries("held").as_dict(),
                 "diagnosis_before": {m: d.as_dict() for m, d in self.diagnosis_before.items()},
                 "diagnosis_after": {m: d.as_dict() for m, d in self.diagnosis_after.items()},
                 "factors": {n: self.factors[n] for n in self.factors.extra},
@@ -217,21 +252,22 @@ def pays_off_out_of_sample(cv_without: float, cv_with: float) -> bool:
 # --------------------------------------------------------------------------- the loop
 def _fit(current: Simulator, eff: Effect, factors: FactorSet, ds: Dataset, conds, points,
          max_nfev: int = 20) -> tuple[Simulator, FitResult]:
-    """A copy of ``current`` with ``eff`` added and its factor(s) fitted alone on ``points``."""
+    """A copy of ``current`` with ``eff`` added and its factor(s) fitted alone on ``points``
+    (the caller closes the copy: ``with``)."""
     trial = current.clone()
-    trial.add_effect(eff)
-    extra = eff.as_factors()
-    start = factors.with_extra(extra)
-    trial.set_factors(start)
-
-    def res(fs):
-        trial.set_factors(fs)
-        r, lab, _ = _residuals(trial, ds, conds, points)
-        return r, lab
-
     try:
+        trial.add_effect(eff)
+        extra = eff.as_factors()
+        start = factors.with_extra(extra)
+        trial.set_factors(start)
+
+        def res(fs):
+            trial.set_factors(fs)
+            r, lab, _ = _residuals(trial, ds, conds, points)
+            return r, lab
+
         fr = fit(f"candidate {eff.name}", list(extra), start, res, sim=trial, max_nfev=max_nfev)
-    except Exception:
+    except BaseException:
         trial.close()
         raise
     trial.set_factors(fr.final)
@@ -248,16 +284,123 @@ def cross_validate(current: Simulator, eff: Effect, factors: FactorSet, ds: Data
         test = [i for i in range(n) if i % folds == f]
         train = [i for i in range(n) if i % folds != f]
         trial, _ = _fit(current, eff, factors, ds, conds, train)
-        total += _rss(_residuals(trial, ds, conds, test)[0])
-        trial.close()
+        with trial:
+            total += _rss(_residuals(trial, ds, conds, test)[0])
     return total
+
+
+@dataclass
+class _Round:
+    """The model's residuals at the start of a round, against which candidates are scored."""
+
+    number: int
+    diagnosis: dict[str, MetricDiagnosis]
+    fitted: np.ndarray                 # residuals of the fitted points (last: failed-trim penalty)
+    labels: list[str]
+    values: dict                       # model values of the fitted points
+    held_rss: float
+    per_metric: dict[str, float]       # residual sum of squares of each metric
+    structure: dict[str, float]        # each structured metric's sum of squares beyond its noise
+
+
+def _start_round(number: int, current: Simulator, ds: Dataset, conds, fitp, held,
+                 diag: dict[str, MetricDiagnosis]) -> _Round:
+    r0, lab0, v0 = _residuals(current, ds, conds, fitp)
+    h0 = _residuals(current, ds, conds, held)[0]
+    per0 = _by_metric(r0, lab0)
+    counts = {m: sum(1 for x in lab0 if x.endswith("." + m)) for m in per0}
+    # structure: each structured metric's sum of squares beyond its estimated noise
+    structure = {m: max(0.0, per0[m] - counts[m] * (diag[m].noise / diag[m].tolerance) ** 2)
+                 for m in per0 if m in diag and diag[m].structured}
+    return _Round(number, diag, r0, lab0, v0, _rss(h0), per0, structure)
+
+
+def _score(start: _Round, name: str, eff: Effect, fr: FitResult, trial: Simulator, ds: Dataset, conds, fitp,
+           held) -> Candidate:
+    """A fitted candidate scored against the round's start: evidence, materiality, explained share."""
+    r0, per0, v0, structure, diag = start.fitted, start.per_metric, start.values, start.structure, start.diagnosis
+    r1, lab1, v1 = _residuals(trial, ds, conds, fitp)
+    h1 = _residuals(trial, ds, conds, held)[0]
+    per1 = _by_metric(r1, lab1)
+    explained = {m: (per0[m] - per1.get(m, 0.0)) / structure[m] for m in structure if structure[m] > 0}
+    rss0, rss1, hold1, n_fit = _rss(r0), _rss(r1), _rss(h1), len(r0)
+    # share of the structure of the metrics it moves, net of what it spoils elsewhere
+    own = sum(v for m, v in structure.items() if m in eff.affects)
+    share = (rss0 - rss1) / own if own > 0 else 0.0
+    k = len(eff.factors)
+    # Gaussian log-likelihood with each metric's noise (estimated by the diagnosis,
+    # in tolerance units): BIC change = -(chi2 before - chi2 after) + k ln n
+    chi = sum((per0[m] - per1.get(m, 0.0)) / noise_in_tolerances(diag[m]) ** 2
+              for m in per0 if m in diag)
+    chi += (float(r0[-1]) ** 2 - float(r1[-1]) ** 2)          # failed-trim penalty, unit variance
+    dbic = -chi + k * math.log(n_fit)
+    material = max((abs(v1[key] - v0[key]) / METRICS[key[1]].tol_for(1.0)
+                    for key in v1 if key in v0 and math.isfinite(v1[key]) and math.isfinite(v0[key])),
+                   default=0.0)
+    c = Candidate(name, start.number, {lab: fr.final[lab] for lab in eff.as_factors()}, dict(fr.stderr),
+                  (rss0, rss1), (start.held_rss, hold1), n_fit, dbic, material, explained, share,
+                  affects=tuple(eff.affects))
+    c.reason = "; ".join(evidence_failures(dbic, material, own, share))
+    return c
+
+
+def _candidates(start: _Round, current: Simulator, lib: dict[str, Effect], factors: FactorSet, ds: Dataset, conds,
+                fitp, held, say) -> list[Candidate]:
+    """Every library effect the model lacks (and that moves a metric of the data), fitted and scored."""
+    tried = []
+    for name, eff in lib.items():
+        if name in current.effects or not set(eff.affects) & set(ds.metrics):
+            continue
+        try:
+            trial, fr = _fit(current, eff, factors, ds, conds, fitp)
+        except Exception as exc:                           # a candidate that breaks the trims is rejected
+            say(f"round {start.number}: {name}: fit failed ({exc})")
+            continue
+        with trial:
+            c = _score(start, name, eff, fr, trial, ds, conds, fitp, held)
+        tried.append(c)
+        say(f"round {start.number}: {name:34s} BIC {c.delta_bic:+9.1f}  explains {100 * c.share:5.0f} %  "
+            f"{'passes the fit tests' if not c.reason else 'rejected'}")
+    return tried
+
+
+def _best_out_of_sample(tried: list[Candidate], current: Simulator, lib: dict[str, Effect], factors: FactorSet,
+                        ds: Dataset, conds, say) -> Candidate | None:
+    """The strongest candidate that passed the fit tests and pays off in cross-validation."""
+    for c in sorted((c for c in tried if not c.reason), key=lambda c: c.delta_bic):
+        cv0 = _rss(_residuals(current, ds, conds, list(range(len(ds))))[0])
+        cv1 = cross_validate(current, lib[c.effect], factors, ds, conds)
+        c.cv = (cv0, cv1)
+        if pays_off_out_of_sample(cv0, cv1):
+            return c
+        c.reason = (f"does not pay off out of sample: cross-validated residuals {cv0:.3g} -> {cv1:.3g} "
+                    f"(needs -{100 * MIN_HELD_GAIN:.0f} %)")
+        say(f"round {c.round}: {c.effect}: {c.reason}")
+    return None
+
+
+def _refit(rnd: int, current: Simulator, lib: dict[str, Effect], added: list[str], factors: FactorSet, ds: Dataset,
+           conds, fitp, refit_companions: bool, say) -> FitResult:
+    """Every added effect refitted with the calibration factors of their metrics."""
+    names = [n for n in factors.extra]
+    if refit_companions:
+        for e in added:
+            names += [f for f in companion_factors(lib[e]) if f not in names]
+
+    def res(fs):
+        current.set_factors(fs)
+        r, lab, _ = _residuals(current, ds, conds, fitp)
+        return r, lab
+
+    say(f"round {rnd}: added {added[-1]}; refit of {', '.join(names)}")
+    return fit(f"refit after {added[-1]}", names, factors, res, sim=current, max_nfev=30)
 
 
 def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None = None,
                max_effects: int = MAX_EFFECTS, refit_companions: bool = True,
                progress: Callable[[str], None] | None = None) -> CloseLoopResult:
     """Close the loop on one dataset (see the module doc). ``sim`` is left unchanged; the
-    result holds a simulator of the aircraft with the added effects."""
+    result holds the aircraft with the added effects (its file and factors)."""
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     lib = library() if effects is None else effects
@@ -269,105 +412,45 @@ def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None
     diag0 = diagnose(before)
     for m, d in diag0.items():
         say(f"diagnosis {m}: {'STRUCTURED' if d.structured else 'noise'}: {d.reason}")
-    current = sim.clone()
-    factors = current.factors
     candidates: list[Candidate] = []
     added: list[str] = []
     refits: list[FitResult] = []
-    for rnd in range(1, max_effects + 1):
-        diag = diag0 if rnd == 1 else diagnose(evaluate_dataset(current, ds))
-        if not any(d.structured for d in diag.values()):
-            say(f"round {rnd}: no structured residual: nothing to add")
-            break
-        r0, lab0, v0 = _residuals(current, ds, conds, fitp)
-        h0 = _residuals(current, ds, conds, held)[0]
-        per0 = _by_metric(r0, lab0)
-        rss0, hold0, n_fit = _rss(r0), _rss(h0), len(r0)
-        counts = {m: sum(1 for x in lab0 if x.endswith("." + m)) for m in per0}
-        # structure: each structured metric's sum of squares beyond its estimated noise
-        structure = {m: max(0.0, per0[m] - counts[m] * (diag[m].noise / diag[m].tolerance) ** 2)
-                     for m in per0 if m in diag and diag[m].structured}
-        tried = []
-        for name, eff in lib.items():
-            if name in current.effects or not set(eff.affects) & set(ds.metrics):
-                continue
-            try:
-                trial, fr = _fit(current, eff, factors, ds, conds, fitp)
-            except Exception as exc:                           # a candidate that breaks the trims is rejected
-                say(f"round {rnd}: {name}: fit failed ({exc})")
-                continue
-            r1, lab1, v1 = _residuals(trial, ds, conds, fitp)
-            h1 = _residuals(trial, ds, conds, held)[0]
-            trial.close()
-            per1 = _by_metric(r1, lab1)
-            explained = {m: (per0[m] - per1.get(m, 0.0)) / structure[m] for m in structure if structure[m] > 0}
-            rss1, hold1 = _rss(r1), _rss(h1)
-            # share of the structure of the metrics it moves, net of what it spoils elsewhere
-            own = sum(v for m, v in structure.items() if m in eff.affects)
-            share = (rss0 - rss1) / own if own > 0 else 0.0
-            k = len(eff.factors)
-            # Gaussian log-likelihood with each metric's noise (estimated by the diagnosis,
-            # in tolerance units): BIC change = -(chi2 before - chi2 after) + k ln n
-            chi = sum((per0[m] - per1.get(m, 0.0)) / noise_in_tolerances(diag[m]) ** 2
-                      for m in per0 if m in diag)
-            chi += (float(r0[-1]) ** 2 - float(r1[-1]) ** 2)          # failed-trim penalty, unit variance
-            dbic = -chi + k * math.log(n_fit)
-            material = max((abs(v1[key] - v0[key]) / METRICS[key[1]].tol_for(1.0)
-                            for key in v1 if key in v0 and math.isfinite(v1[key]) and math.isfinite(v0[key])),
-                           default=0.0)
-            c = Candidate(name, rnd, {lab: fr.final[lab] for lab in eff.as_factors()}, dict(fr.stderr), (rss0, rss1),
-                          (hold0, hold1), n_fit, dbic, material, explained, share)
-            why = evidence_failures(dbic, material, own, share)
-            c.reason = "; ".join(why)
-            tried.append(c)
-            say(f"round {rnd}: {name:34s} BIC {dbic:+9.1f}  explains {100 * share:5.0f} %  "
-                f"{'passes the fit tests' if not why else 'rejected'}")
-        candidates += tried
-        best = None
-        for c in sorted((c for c in tried if not c.reason), key=lambda c: c.delta_bic):
-            cv0 = _rss(_residuals(current, ds, conds, list(range(n)))[0])
-            cv1 = cross_validate(current, lib[c.effect], factors, ds, conds)
-            c.cv = (cv0, cv1)
-            if pays_off_out_of_sample(cv0, cv1):
-                best = c
+    with ExitStack() as sandboxes:
+        current = sandboxes.enter_context(sim.clone())
+        factors = current.factors
+        for rnd in range(1, max_effects + 1):
+            diag = diag0 if rnd == 1 else diagnose(evaluate_dataset(current, ds))
+            if not any(d.structured for d in diag.values()):
+                say(f"round {rnd}: no structured residual: nothing to add")
                 break
-            c.reason = (f"does not pay off out of sample: cross-validated residuals {cv0:.3g} -> {cv1:.3g} "
-                        f"(needs -{100 * MIN_HELD_GAIN:.0f} %)")
-            say(f"round {rnd}: {c.effect}: {c.reason}")
-        if best is None:
-            break
-        best.accepted = True
-        best.reason = (f"accepted: strongest evidence; out of sample {best.cv[0]:.3g} -> {best.cv[1]:.3g} "
-                       f"({HOLDOUT}-fold cross-validation)")
-        trial, fr = _fit(current, lib[best.effect], factors, ds, conds, fitp)
-        current.close()
-        current = trial
-        factors = fr.final
-        added.append(best.effect)
-        # refit every added effect with the calibration factors of their metrics
-        names = [n for n in factors.extra]
-        if refit_companions:
-            for e in added:
-                names += [f for f in companion_factors(lib[e]) if f not in names]
-
-        def res(fs):
-            current.set_factors(fs)
-            r, lab, _ = _residuals(current, ds, conds, fitp)
-            return r, lab
-
-        say(f"round {rnd}: added {best.effect}; refit of {', '.join(names)}")
-        rf = fit(f"refit after {best.effect}", names, factors, res, sim=current, max_nfev=30)
-        refits.append(rf)
-        factors = rf.final
-        current.set_factors(factors)
-    after = evaluate_dataset(current, ds)
+            start = _start_round(rnd, current, ds, conds, fitp, held, diag)
+            tried = _candidates(start, current, lib, factors, ds, conds, fitp, held, say)
+            candidates += tried
+            best = _best_out_of_sample(tried, current, lib, factors, ds, conds, say)
+            if best is None:
+                break
+            best.accepted = True
+            best.reason = (f"accepted: strongest evidence; out of sample {best.cv[0]:.3g} -> {best.cv[1]:.3g} "
+                           f"({HOLDOUT}-fold cross-validation)")
+            trial, fr = _fit(current, lib[best.effect], factors, ds, conds, fitp)
+            sandboxes.enter_context(trial)
+            current.close()
+            current = trial
+            factors = fr.final
+            added.append(best.effect)
+            rf = _refit(rnd, current, lib, added, factors, ds, conds, fitp, refit_companions, say)
+            refits.append(rf)
+            factors = rf.final
+            current.set_factors(factors)
+        after = evaluate_dataset(current, ds)
+        tree = current.aircraft_tree()
     diag1 = diagnose(after)
-    return CloseLoopResult(sim.name, ds, fitp, held, before, after, diag0, diag1, candidates, added, refits,
-                           factors, current, time.perf_counter() - t0)
+    return CloseLoopResult(sim.name, sim.root, ds, fitp, held, before, after, diag0, diag1, candidates, added,
+                           refits, factors, tree, time.perf_counter() - t0)
 
 
 def write_aircraft(result: CloseLoopResult, root: Path, out_name: str) -> Path:
     """Write the aircraft with its added effects as ``aircraft/<out_name>/`` of ``root`` (the
     parent's folder copied, its XML replaced), loadable by JSBSim and by this workbench."""
-    return write_derived(AircraftPaths(result.sim.root, result.sim.name), result.sim.aircraft_tree(),
-                         result.sim.factors, AircraftPaths(Path(root), out_name))
+    return write_derived(AircraftPaths(result.root, result.aircraft), result.aircraft_tree, result.factors,
+                         AircraftPaths(Path(root), out_name))

@@ -2,7 +2,7 @@
 
 A target names a data kind, a metric, a statistic of the evaluation summary (``rmse`` or
 ``within_pct``) and its limit. The tolerances themselves belong to the metrics
-(:data:`jsbsim_calib.data.METRICS`, FAA Part 60 Level 5 derived); the targets say how much
+(:data:`jsbsim_calib.data.schemas.METRICS`, FAA Part 60 Level 5 derived); the targets say how much
 of the data must meet them. A statistic that is missing or not a number is a MISS, never a
 PASS.
 """
@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Mapping
 
-from .data.schemas import METRICS
+from ..data.schemas import METRICS
 
 
 @dataclass(frozen=True)
@@ -59,12 +59,12 @@ class Verdict:
 
 def verdicts(summaries: Mapping[str, Mapping[str, Mapping]], targets=TARGETS) -> list[Verdict]:
     """Verdicts of the targets whose kind and metric the summaries hold
-    (``summaries[kind][metric]`` in the schema of :meth:`Evaluation.summary`)."""
+    (``summaries[kind][metric]``: :class:`jsbsim_calib.evaluate.MetricSummary`)."""
     out = []
     for t in targets:
         s = summaries.get(t.kind, {}).get(t.metric)
         if s is not None:
-            out.append(Verdict(t, s.get(t.statistic)))
+            out.append(Verdict(t, getattr(s, t.statistic)))
     return out
 
 

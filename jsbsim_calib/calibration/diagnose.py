@@ -28,7 +28,7 @@ from typing import Callable
 import numpy as np
 from scipy import stats
 
-from .data.schemas import METRICS
+from ..data.schemas import METRICS
 
 ALPHA = 0.01            # significance of the tests
 MATERIAL = 0.25         # share of the tolerance a structure must reach

@@ -1,0 +1,230 @@
+"""The fit engine every calibration stage and step shares.
+
+Factors normalized to [-1, 1] over their bounds (method 3.1.2), residuals divided by their
+tolerances, ``scipy.optimize.least_squares`` (trust-region reflective, bounded) with a
+deliberate finite-difference step, a progress line per iteration, and a result in the lmfit
+manner (initial -> final, bounds, "at boundary" flags, standard errors where the Jacobian
+allows, cost, evaluations, wall time).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..factors import FactorSet
+from ..jsbsim.simulator import Simulator
+
+# The fit (see fit; README, "Reproducible fits", for the measurements behind each value)
+PRIOR_WEIGHT = 0.5           # pull of normalized factors toward the prior centre
+LEGS = ((6.0, 0.02), (2.0, 0.02), (1.0, 0.02), (1.0, 0.002))   # (prior multiple, finite-difference step)
+TRUST_RADIUS0 = 1.0          # first trust region of every leg, normalized units (the box is [-1, 1])
+FIT_TOL = 1e-9               # ftol = xtol = gtol of scipy's least_squares
+MAX_RESTARTS = 2             # restarts of the optimizer within a leg
+RESTART_GAIN = 1e-6          # a restart must lower the cost by this share, or the leg ends
+MAX_NFEV = 600               # function evaluations of a whole fit
+
+
+@dataclass
+class FitResult:
+    """Outcome of one least-squares fit (one stage or step)."""
+
+    stage: str
+    names: list[str]
+    initial: FactorSet
+    final: FactorSet
+    cost_initial: float
+    cost_final: float
+    nfev: int
+    njev: int
+    status: int
+    message: str
+    wall_time_s: float
+    trims: int
+    stderr: dict[str, float | None] = field(default_factory=dict)
+    correl: dict[tuple[str, str], float] = field(default_factory=dict)
+    history: list[dict] = field(default_factory=list)
+    residual_names: list[str] = field(default_factory=list)
+    residuals: np.ndarray | None = None
+    notes: list[str] = field(default_factory=list)
+
+    def at_boundary(self, name: str, tol: float = 1e-3) -> str:
+        f = self.final.factor(name)
+        v = self.final[name]
+        span = f.upper - f.lower
+        if v <= f.lower + tol * span:
+            return "at lower bound"
+        if v >= f.upper - tol * span:
+            return "at upper bound"
+        return ""
+
+    def report(self) -> str:
+        """Text report in the lmfit manner."""
+        lines = [f"[[Fit: {self.stage}]]",
+                 "    method             = least_squares (trf, bounded, normalized factors)",
+                 f"    status             = {self.status}: {self.message}",
+                 f"    function evals     = {self.nfev} ({self.njev} Jacobians, {self.trims} trims)",
+                 f"    residuals          = {len(self.residual_names)}",
+                 f"    cost (1/2 sum r^2) = {self.cost_initial:.4g} -> {self.cost_final:.4g}",
+                 "[[Factors]]"]
+        for n in self.names:
+            f = self.final.factor(n)
+            se = self.stderr.get(n)
+            se_s = f" +/- {se:.3g}" if se is not None and math.isfinite(se) else " +/- (n/a)"
+            flag = self.at_boundary(n)
+            if not flag and se is not None and math.isfinite(se) and se > 0.5 * (f.upper - f.lower):
+                flag = "not identified by these data"
+            unit = "" if f.unit == "-" else f" {f.unit}"
+            lines.append(f"    {n:<17} {self.initial[n]:>9.4g} -> {self.final[n]:>9.5g}{se_s:<14}{unit:<6} "
+                         f"bounds [{f.lower:g}, {f.upper:g}]{'  ' + flag.upper() if flag else ''}")
+        strong = [(k, v) for k, v in self.correl.items() if abs(v) > 0.9]
+        if strong:
+            lines.append("[[Correlations]] (|r| > 0.9)")
+            for (a, b), v in sorted(strong, key=lambda kv: -abs(kv[1])):
+                lines.append(f"    C({a}, {b}) = {v:+.3f}")
+        for n in self.notes:
+            lines.append(f"    note: {n}")
+        return "\n".join(lines)
+
+    def summary(self) -> dict:
+        return {
+            "stage": self.stage, "status": self.status, "message": self.message, "nfev": self.nfev,
+            "njev": self.njev, "trims": self.trims, "cost_initial": self.cost_initial, "cost_final": self.cost_final,
+            "factors": {n: {"initial": self.initial[n], "final": self.final[n], "stderr": self.stderr.get(n),
+                            "lower": self.final.factor(n).lower, "upper": self.final.factor(n).upper,
+                            "at_boundary": self.at_boundary(n) or None} for n in self.names},
+            "notes": self.notes,
+        }
+
+
+def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: FactorSet) -> tuple[dict, dict]:
+    """Standard errors of the factors from the Jacobian at the solution, with the
+    covariance scaled by the reduced chi-square of the residuals (as lmfit does)."""
+    out: dict[str, float | None] = {n: None for n in names}
+    corr = {}
+    try:
+        jtj = jac.T @ jac
+        if np.linalg.matrix_rank(jtj) < len(names):
+            return out, corr
+        cov = np.linalg.inv(jtj)
+    except np.linalg.LinAlgError:
+        return out, corr
+    dof = max(1, len(residuals) - len(names))
+    cov = cov * float(residuals @ residuals) / dof
+    d = np.sqrt(np.clip(np.diag(cov), 0, None))
+    for i, n in enumerate(names):
+        f = space.factor(n)
+        out[n] = float(d[i] * 0.5 * (f.upper - f.lower))        # back from normalized units
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            if d[i] > 0 and d[j] > 0:
+                corr[(names[i], names[j])] = float(cov[i, j] / (d[i] * d[j]))
+    return out, corr
+
+
+def _trf_leg(fun, jac, x0: np.ndarray, ftol: float, max_nfev: int | None, callback):
+    """One run of scipy's trust-region-reflective least squares on [-1, 1] from ``x0``.
+
+    The optimizer moves ``u = x - x0 + c`` with ``|c| = TRUST_RADIUS0``: scipy's trf starts
+    with a trust region of ``|u0|``, which would otherwise be the norm of the start itself
+    (a start a round-off away from zero would get a round-off trust region and stop)."""
+    c = np.full(len(x0), TRUST_RADIUS0 / math.sqrt(len(x0)))
+    res = least_squares(lambda u: fun(u - c + x0), c, jac=lambda u: jac(u - c + x0),
+                        bounds=(-1.0 - x0 + c, 1.0 - x0 + c), method="trf", x_scale=1.0,
+                        ftol=ftol, xtol=ftol, gtol=ftol, max_nfev=max_nfev, callback=callback)
+    res.x = np.clip(res.x - c + x0, -1.0, 1.0)
+    return res
+
+
+def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[[FactorSet], tuple[np.ndarray, list[str]]],
+        *, sim: Simulator, max_nfev: int | None = MAX_NFEV, progress: Callable[[str], None] | None = None,
+        ftol: float = FIT_TOL, prior: float = PRIOR_WEIGHT, prior_center: FactorSet | None = None) -> FitResult:
+    """Least-squares fit of ``names`` (others held at ``start``).
+
+    ``prior`` adds the residuals ``prior * (x - x_center)`` (x = normalized factor, centre
+    neutral or ``prior_center``): among factor sets the data cannot tell apart it picks the
+    one closest to the physics-based model. A factor moved across half its range costs as
+    much as a quarter of a tolerance on one point (prior 0.5): the data's weakly identified
+    directions are pinned by the prior, not by round-off (README, "Reproducible fits").
+
+    The fit is a sequence of legs (:data:`LEGS`), each from the last one's result: first a
+    path of decreasing priors (the minimum with a strong prior is unique and every start
+    reaches it; a Gauss-Newton step amplifies a perturbation by about |r|/sigma_min^2, which
+    the strong prior keeps small while the residuals are large), then a polish with a small
+    finite-difference step. A leg restarts the optimizer from its result (a fresh trust
+    region: trf can stop on a kink of the trims) until a restart gains less than
+    :data:`RESTART_GAIN` of the cost.
+    """
+    names = list(names)
+    t0 = time.perf_counter()
+    trims0 = sim.trims
+    x0 = start.vector(names)
+    bad = [n for n, x in zip(names, x0) if not -1.0 <= x <= 1.0]
+    if bad:
+        raise ValueError(f"start values outside the bounds of {', '.join(bad)}")
+    x_center = (prior_center or FactorSet(extra=start.extra)).vector(names)
+    labels: list[str] = []
+    history: list[dict] = []
+    leg = {"weight": 1.0, "step": LEGS[0][1]}
+    njev = [0]
+
+    def fun(x):
+        fs = start.with_vector(names, np.clip(x, -1, 1))
+        r, lab = residuals(fs)
+        if prior:
+            r = np.concatenate([r, leg["weight"] * prior * (fs.vector(names) - x_center)])
+            lab = list(lab) + [f"prior {n}" for n in names]
+        labels[:] = lab
+        return r
+
+    def callback(intermediate_result):
+        it = len(history) + 1
+        c = float(intermediate_result.cost)
+        history.append({"iteration": it, "cost": c, "prior_multiple": leg["weight"], "trims": sim.trims - trims0})
+        if progress:
+            progress(f"{stage}: iteration {it:3d}  cost {c:10.4g}  trims {sim.trims - trims0:6d}  "
+                     f"{time.perf_counter() - t0:6.1f} s")
+
+    def jac(x):
+        """Forward differences with an absolute step in normalized units (the leg's: larger
+        than the trim noise; scipy's relative steps vanish at x = 0), inwards at a bound."""
+        njev[0] += 1
+        f0 = fun(x)
+        J = np.empty((len(f0), len(x)))
+        for i in range(len(x)):
+            h = leg["step"] if x[i] + leg["step"] <= 1.0 else -leg["step"]
+            xi = np.array(x, float)
+            xi[i] += h
+            J[:, i] = (fun(xi) - f0) / h
+        return J
+
+    r0 = fun(x0)
+    cost0 = 0.5 * float(r0 @ r0)
+    if progress:
+        progress(f"{stage}: start cost {cost0:.4g} with {len(r0)} residuals, {len(names)} factors")
+    x, nfev, res = x0, 0, None
+    for weight, step in (LEGS if prior else LEGS[-2:]):        # no prior: no path of priors
+        leg.update(weight=weight, step=step)
+        cost = math.inf
+        for _ in range(1 + MAX_RESTARTS):
+            left = None if max_nfev is None else max_nfev - nfev
+            if left is not None and left <= 0:
+                break
+            res = _trf_leg(fun, jac, x, ftol, left, callback)
+            nfev += res.nfev
+            gained = res.cost < (1.0 - RESTART_GAIN) * cost
+            x, cost = res.x, min(cost, float(res.cost))
+            if not gained:
+                break
+    final = start.with_vector(names, x)
+    r_final, _ = residuals(final)             # leaves the simulator at the final factors
+    if prior:
+        r_final = np.concatenate([r_final, prior * (final.vector(names) - x_center)])
+    se, corr = _stderr(res.jac, names, r_final, final)
+    return FitResult(stage, names, start, final, cost0, 0.5 * float(r_final @ r_final), nfev,
+                     njev[0], int(res.status), str(res.message), time.perf_counter() - t0,
+                     sim.trims - trims0, se, corr, history, list(labels), r_final)
