@@ -45,7 +45,7 @@ def test_evaluate_cli_on_a_log_writes_summary_segments_plot_and_table(tmp_path):
 def test_close_loop_accepts_a_log():
     res = run_close_loop(REPO, "c172", LOG)
     s = res.summaries("all")
-    assert set(s["before"]) == {"rpm", "roc_fpm", "pitch_deg"}
+    assert set(s.before) == {"rpm", "roc_fpm", "pitch_deg"}
     # measured: the logged pitch sits about 1.4 deg above the model's in every segment (the
     # G1000 attitude reference), found as a constant attitude offset
     assert res.added[:1] == ["attitude_reference_offset"]
