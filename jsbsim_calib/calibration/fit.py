@@ -1,10 +1,10 @@
 """The fit engine every calibration stage and step shares.
 
 Factors normalized to [-1, 1] over their bounds (method 3.1.2), residuals divided by their
-tolerances, ``scipy.optimize.least_squares`` (trust-region reflective, bounded) with a
-deliberate finite-difference step, a progress line per iteration, and a result in the lmfit
-manner (initial -> final, bounds, "at boundary" flags, standard errors where the Jacobian
-allows, cost, evaluations, wall time).
+tolerances, a bounded Levenberg-Marquardt (:func:`jsbsim_calib.numerics.least_squares`,
+which gives the same bits on every CPU) with a deliberate finite-difference step, a progress
+line per iteration, and a result in the lmfit manner (initial -> final, bounds, "at
+boundary" flags, standard errors where the Jacobian allows, cost, evaluations, wall time).
 """
 from __future__ import annotations
 
@@ -14,16 +14,15 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
-from scipy.optimize import least_squares
 
+from .. import numerics
 from ..factors import FactorSet
 from ..jsbsim.simulator import Simulator
 
 # The fit (see fit; README, "Reproducible fits", for the measurements behind each value)
 PRIOR_WEIGHT = 0.5           # pull of normalized factors toward the prior centre
 LEGS = ((6.0, 0.02), (2.0, 0.02), (1.0, 0.02), (1.0, 0.002))   # (prior multiple, finite-difference step)
-TRUST_RADIUS0 = 1.0          # first trust region of every leg, normalized units (the box is [-1, 1])
-FIT_TOL = 1e-9               # ftol = xtol = gtol of scipy's least_squares
+FIT_TOL = 1e-9               # ftol = xtol = gtol of the least-squares solver
 MAX_RESTARTS = 2             # restarts of the optimizer within a leg
 RESTART_GAIN = 1e-6          # a restart must lower the cost by this share, or the leg ends
 MAX_NFEV = 600               # function evaluations of a whole fit
@@ -65,7 +64,7 @@ class FitResult:
     def report(self) -> str:
         """Text report in the lmfit manner."""
         lines = [f"[[Fit: {self.stage}]]",
-                 "    method             = least_squares (trf, bounded, normalized factors)",
+                 "    method             = Levenberg-Marquardt (bounded, normalized factors)",
                  f"    status             = {self.status}: {self.message}",
                  f"    function evals     = {self.nfev} ({self.njev} Jacobians, {self.trims} trims)",
                  f"    residuals          = {len(self.residual_names)}",
@@ -106,15 +105,15 @@ def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: Fac
     covariance scaled by the reduced chi-square of the residuals (as lmfit does)."""
     out: dict[str, float | None] = {n: None for n in names}
     corr = {}
+    jtj = numerics.gram(jac)
     try:
-        jtj = jac.T @ jac
-        if np.linalg.matrix_rank(jtj) < len(names):
-            return out, corr
-        cov = np.linalg.inv(jtj)
-    except np.linalg.LinAlgError:
+        cov = numerics.inverse(jtj)
+    except numerics.SingularMatrixError:
         return out, corr
+    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) <= 0) or np.max(np.abs(cov)) > 1e12:
+        return out, corr                        # rank-deficient: no standard errors
     dof = max(1, len(residuals) - len(names))
-    cov = cov * float(residuals @ residuals) / dof
+    cov = cov * numerics.sum_sq(residuals) / dof
     d = np.sqrt(np.clip(np.diag(cov), 0, None))
     for i, n in enumerate(names):
         f = space.factor(n)
@@ -124,20 +123,6 @@ def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: Fac
             if d[i] > 0 and d[j] > 0:
                 corr[(names[i], names[j])] = float(cov[i, j] / (d[i] * d[j]))
     return out, corr
-
-
-def _trf_leg(fun, jac, x0: np.ndarray, ftol: float, max_nfev: int | None, callback):
-    """One run of scipy's trust-region-reflective least squares on [-1, 1] from ``x0``.
-
-    The optimizer moves ``u = x - x0 + c`` with ``|c| = TRUST_RADIUS0``: scipy's trf starts
-    with a trust region of ``|u0|``, which would otherwise be the norm of the start itself
-    (a start a round-off away from zero would get a round-off trust region and stop)."""
-    c = np.full(len(x0), TRUST_RADIUS0 / math.sqrt(len(x0)))
-    res = least_squares(lambda u: fun(u - c + x0), c, jac=lambda u: jac(u - c + x0),
-                        bounds=(-1.0 - x0 + c, 1.0 - x0 + c), method="trf", x_scale=1.0,
-                        ftol=ftol, xtol=ftol, gtol=ftol, max_nfev=max_nfev, callback=callback)
-    res.x = np.clip(res.x - c + x0, -1.0, 1.0)
-    return res
 
 
 def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[[FactorSet], tuple[np.ndarray, list[str]]],
@@ -155,8 +140,8 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     path of decreasing priors (the minimum with a strong prior is unique and every start
     reaches it; a Gauss-Newton step amplifies a perturbation by about |r|/sigma_min^2, which
     the strong prior keeps small while the residuals are large), then a polish with a small
-    finite-difference step. A leg restarts the optimizer from its result (a fresh trust
-    region: trf can stop on a kink of the trims) until a restart gains less than
+    finite-difference step. A leg restarts the optimizer from its result (a fresh damping:
+    it can stop on a kink of the trims, whose tables interpolate linearly) until a restart gains less than
     :data:`RESTART_GAIN` of the cost.
     """
     names = list(names)
@@ -181,19 +166,17 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
         labels[:] = lab
         return r
 
-    def callback(intermediate_result):
+    def callback(c: float):
         it = len(history) + 1
-        c = float(intermediate_result.cost)
         history.append({"iteration": it, "cost": c, "prior_multiple": leg["weight"], "trims": sim.trims - trims0})
         if progress:
             progress(f"{stage}: iteration {it:3d}  cost {c:10.4g}  trims {sim.trims - trims0:6d}  "
                      f"{time.perf_counter() - t0:6.1f} s")
 
-    def jac(x):
+    def jac(x, f0):
         """Forward differences with an absolute step in normalized units (the leg's: larger
-        than the trim noise; scipy's relative steps vanish at x = 0), inwards at a bound."""
+        than the trim noise; relative steps would vanish at x = 0), inwards at a bound."""
         njev[0] += 1
-        f0 = fun(x)
         J = np.empty((len(f0), len(x)))
         for i in range(len(x)):
             h = leg["step"] if x[i] + leg["step"] <= 1.0 else -leg["step"]
@@ -203,7 +186,7 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
         return J
 
     r0 = fun(x0)
-    cost0 = 0.5 * float(r0 @ r0)
+    cost0 = 0.5 * numerics.sum_sq(r0)
     if progress:
         progress(f"{stage}: start cost {cost0:.4g} with {len(r0)} residuals, {len(names)} factors")
     x, nfev, res = x0, 0, None
@@ -214,7 +197,8 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
             left = None if max_nfev is None else max_nfev - nfev
             if left is not None and left <= 0:
                 break
-            res = _trf_leg(fun, jac, x, ftol, left, callback)
+            res = numerics.least_squares(fun, jac, x, -1.0, 1.0, ftol=ftol, xtol=ftol, gtol=ftol,
+                                         max_nfev=left, callback=callback)
             nfev += res.nfev
             gained = res.cost < (1.0 - RESTART_GAIN) * cost
             x, cost = res.x, min(cost, float(res.cost))
@@ -225,6 +209,6 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     if prior:
         r_final = np.concatenate([r_final, prior * (final.vector(names) - x_center)])
     se, corr = _stderr(res.jac, names, r_final, final)
-    return FitResult(stage, names, start, final, cost0, 0.5 * float(r_final @ r_final), nfev,
+    return FitResult(stage, names, start, final, cost0, 0.5 * numerics.sum_sq(r_final), nfev,
                      njev[0], int(res.status), str(res.message), time.perf_counter() - t0,
                      sim.trims - trims0, se, corr, history, list(labels), r_final)

@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import root
 
+from .. import numerics
 from ..errors import TrimError
 from ..physics.atmosphere import isa_pressure, isa_temperature
 from ..physics.engine import poh_mixture
@@ -224,8 +225,8 @@ def _warm_start(problem: _Equilibrium, cached) -> tuple[tuple, int]:
         if float(np.max(np.abs(fx))) < NEWTON_TOL:
             break
         try:
-            x_new = x - np.linalg.solve(J, fx)
-        except np.linalg.LinAlgError:
+            x_new = x - numerics.solve(J, fx)     # not np.linalg: the same bits on every CPU
+        except numerics.SingularMatrixError:
             break
         f_new = problem.residual(x_new)
         nfev += 1
