@@ -24,6 +24,7 @@ from ..physics.geometry import AircraftGeometry
 from ..units import FT, LB_PER_GAL_AVGAS, LBF, LBM, SLUG, US_GAL
 from . import equations
 from .equations import AILERON, ELEVATOR, FLAP, M2_TO_FT2, RUDDER
+from .pilot import OUTPUTS as PILOT_OUTPUTS, pilot_system, throttle_channel
 from .xml import (FACTOR_DIGITS, Tree, comment, element, fmt, function, location, operation, parse, prop, read, sub,
                   table, tree, value)
 
@@ -42,6 +43,7 @@ def aircraft_xml(geom: AircraftGeometry, aero: AeroModel, *, engine_file: str, p
     _ground_reactions(root, geom)
     _propulsion(root, geom, engine_file, propeller_file)
     _calibration_system(root, factors, piston)
+    pilot_system(root)
     _fcs(root, geom, travel_comment)
     _aerodynamics(root, geom, aero)
     return tree(root)
@@ -184,11 +186,11 @@ def _fcs(root, geom: AircraftGeometry, travel_comment: str) -> None:
                  f"(JSBSim signs: elevator + trailing edge down, aileron + roll right, rudder + trailing edge left). "
                  f"{travel_comment}")
     el = geom.horizontal_tail.control("elevator")
-    _surface_channel(fcs, "Pitch", ["fcs/elevator-cmd-norm", "fcs/pitch-trim-cmd-norm"],
+    _surface_channel(fcs, "Pitch", ["fcs/elevator-cmd-norm", "fcs/pitch-trim-cmd-norm", PILOT_OUTPUTS["pitch"]],
                      math.degrees(el.deflection_min_rad), math.degrees(el.deflection_max_rad), ELEVATOR,
                      "fcs/elevator-pos-norm", "elevator [deg], + trailing edge down")
     ai = geom.wing.control("aileron")
-    _surface_channel(fcs, "Roll", ["fcs/aileron-cmd-norm", "fcs/roll-trim-cmd-norm"],
+    _surface_channel(fcs, "Roll", ["fcs/aileron-cmd-norm", "fcs/roll-trim-cmd-norm", PILOT_OUTPUTS["roll"]],
                      math.degrees(ai.deflection_min_rad), math.degrees(ai.deflection_max_rad), AILERON,
                      "fcs/left-aileron-pos-norm", "effective aileron [deg], + right trailing edge up (roll right)")
     ch = fcs.findall("channel")[-1]
@@ -197,9 +199,10 @@ def _fcs(root, geom: AircraftGeometry, travel_comment: str) -> None:
     sub(g, "gain", "-1")
     sub(g, "output", "fcs/right-aileron-pos-norm")
     ru = geom.vertical_tail.control("rudder")
-    _surface_channel(fcs, "Yaw", ["fcs/rudder-cmd-norm", "fcs/yaw-trim-cmd-norm"],
+    _surface_channel(fcs, "Yaw", ["fcs/rudder-cmd-norm", "fcs/yaw-trim-cmd-norm", PILOT_OUTPUTS["yaw"]],
                      math.degrees(ru.deflection_min_rad), math.degrees(ru.deflection_max_rad), RUDDER,
                      "fcs/rudder-pos-norm", "rudder [deg], + trailing edge left (nose-left yaw)")
+    throttle_channel(fcs)
     fl = geom.wing.control("flap")
     if fl is not None:
         ch = sub(fcs, "channel", name="Flaps")

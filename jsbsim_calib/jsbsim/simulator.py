@@ -134,11 +134,27 @@ class Simulator:
         write_aircraft(self._box_paths, self.factors, aircraft=box, effect_values=self.effect_values,
                        propeller=Propeller(self.geometry, self.bem, self.name) if propeller else None)
 
-    def _load(self) -> jsbsim.FGFDMExec:
+    @property
+    def sandbox(self) -> Path:
+        """The private JSBSim root this simulator flies (aircraft as flown, engine, propeller)."""
+        return self._box
+
+    def new_exec(self) -> jsbsim.FGFDMExec:
+        """A fresh FGFDMExec on the sandbox root, quiet, nothing loaded (for scripts)."""
         jsbsim.FGJSBBase().debug_lvl = 0      # no start-up banner on stdout (JSON goes there)
         fdm = jsbsim.FGFDMExec(str(self._box))
         fdm.set_debug_level(0)
         fdm.disable_output()
+        return fdm
+
+    def property_values(self) -> dict[str, float]:
+        """The factor and effect values flown here, by property (propeller factors: in the tables)."""
+        out = {f.property: self.factors[name] for name, f in REGISTRY.items() if not f.baked}
+        out.update(self.effect_values)
+        return out
+
+    def _load(self) -> jsbsim.FGFDMExec:
+        fdm = self.new_exec()
         if not fdm.load_model(self.name):
             raise ModelError(f"JSBSim could not load {self.name} from {self._box}")
         fdm["ic/terrain-elevation-ft"] = -30000.0     # no ground contact at any trim point

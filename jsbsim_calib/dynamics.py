@@ -1,0 +1,159 @@
+"""Dynamic tests: fly each maneuver, measure what the flight test measured, compare.
+
+The measurements are pure functions of a flown trace (:func:`peak_rate`,
+:func:`steady_roll_rate`, :func:`phugoid`); :func:`evaluate_dynamic` flies every test of a
+list on a simulator and returns a :class:`DynamicEvaluation` (typed results: value, error,
+tolerance, within; a NaN is never within).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicMetric,
+                                 DynamicTest)
+from .errors import CalibError
+from .jsbsim.simulator import Simulator
+from .jsbsim.trajectory import Trajectory, fly
+
+
+# --------------------------------------------------------------------------- measurements
+def peak_rate(t: np.ndarray, rate: np.ndarray, start_s: float, sign: float) -> float:
+    """Largest change of a body rate from its value at ``start_s``, in the direction ``sign``
+    (the signed peak: a response the wrong way is negative)."""
+    i0 = int(np.searchsorted(t, start_s))
+    d = sign * (rate[i0:] - rate[i0])
+    return float(sign * np.max(d)) if d.size else math.nan
+
+
+def steady_roll_rate(t: np.ndarray, p: np.ndarray, step_s: float, window=ROLL_WINDOW_S) -> float:
+    """Mean roll rate between ``window`` seconds after the step."""
+    m = (t >= step_s + window[0]) & (t <= step_s + window[1])
+    return float(np.mean(p[m])) if m.any() else math.nan
+
+
+def phugoid(t: np.ndarray, speed: np.ndarray, release_s: float) -> tuple[float, float]:
+    """Period [s] and damping ratio of the oscillation of ``speed`` after ``release_s``: the
+    period from successive up-crossings of the mean, the damping from the logarithmic
+    decrement of successive peaks (first two cycles). NaN where fewer than two cycles show."""
+    m = t >= release_s + 2.0
+    ts, v = t[m], speed[m]
+    if ts.size < 10:
+        return math.nan, math.nan
+    dv = v - np.mean(v)
+    up = np.flatnonzero((dv[:-1] < 0) & (dv[1:] >= 0))
+    if up.size < 3:
+        return math.nan, math.nan
+    # crossing times by linear interpolation between frames
+    tc = ts[up] + (ts[up + 1] - ts[up]) * (-dv[up]) / (dv[up + 1] - dv[up])
+    period = float(np.mean(np.diff(tc[:3])))
+    peaks = [float(np.max(np.abs(dv[a:b]))) for a, b in zip(up[:-1], up[1:])]
+    if len(peaks) < 2 or peaks[1] <= 0:
+        return period, math.nan
+    delta = math.log(peaks[0] / peaks[1])
+    return period, delta / math.sqrt(4 * math.pi ** 2 + delta ** 2)
+
+
+def measure(test: DynamicTest, tr: Trajectory) -> dict[str, float]:
+    """The test's metrics on a flown trace."""
+    t, x = tr.time_s, tr[test.channel]
+    if test.kind == "phugoid":
+        period, zeta = phugoid(t, x, PHUGOID_HOLD_S + 0.6)
+        return {"phugoid_period_s": period, "phugoid_damping": zeta}
+    m = test.metrics[0]
+    if test.kind == "roll_step":
+        return {m.name: steady_roll_rate(t, x, ROLL_STEP_START_S)}
+    return {m.name: peak_rate(t, x, PULSE_START_S, math.copysign(1.0, m.measured))}
+
+
+# --------------------------------------------------------------------------- results
+@dataclass
+class MetricResult:
+    test: str
+    metric: DynamicMetric
+    model: float
+
+    @property
+    def error(self) -> float:
+        return self.model - self.metric.measured
+
+    @property
+    def within(self) -> bool | None:
+        """True/False against the tolerance; None where the tolerance is 'representative'. A
+        NaN is never within."""
+        if self.metric.tolerance is None:
+            return None
+        return bool(abs(self.error) <= self.metric.tol())         # NaN compares False
+
+    @property
+    def verdict(self) -> str:
+        w = self.within
+        return "n/a" if w is None else ("PASS" if w else "FAIL")
+
+
+@dataclass
+class TestResult:
+    test: DynamicTest
+    trajectory: Trajectory | None
+    metrics: list[MetricResult]
+    failure: str = ""            # why the test could not be flown (no trim, ...)
+
+
+@dataclass
+class DynamicEvaluation:
+    aircraft: str
+    results: list[TestResult]
+    wall_time_s: float = 0.0
+    frames: int = 0
+
+    def metric_results(self) -> list[MetricResult]:
+        return [m for r in self.results for m in r.metrics]
+
+    def summary(self) -> dict:
+        rows = self.metric_results()
+        judged = [m for m in rows if m.within is not None]
+        return {"aircraft": self.aircraft, "n": len(rows), "judged": len(judged),
+                "passed": sum(1 for m in judged if m.within),
+                "failed_to_fly": [r.test.id for r in self.results if r.failure]}
+
+    def to_json(self) -> dict:
+        return {"aircraft": self.aircraft, "summary": self.summary(), "tests": [
+            {"id": r.test.id, "initial": r.test.initial, "part60": r.test.part60, "title": r.test.title,
+             "kind": r.test.kind, "assumptions": list(r.test.assumptions), "failure": r.failure,
+             "metrics": [{"name": m.metric.name, "flight_test": m.metric.measured, "model": _js(m.model),
+                          "error": _js(m.error), "tolerance": m.metric.tolerance_text(),
+                          "amplitude_dependent": m.metric.amplitude_dependent, "verdict": m.verdict,
+                          "thesis_model": _js(m.metric.thesis_model)} for m in r.metrics]}
+            for r in self.results]}
+
+
+def _js(x: float):
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+def fly_test(sim: Simulator, test: DynamicTest, *, rate_hz: float = 120.0) -> TestResult:
+    try:
+        tr = fly(sim, test.maneuver, rate_hz=rate_hz)
+    except CalibError as exc:
+        return TestResult(test, None, [MetricResult(test.id, m, math.nan) for m in test.metrics], str(exc))
+    got = measure(test, tr)
+    return TestResult(test, tr, [MetricResult(test.id, m, got.get(m.name, math.nan)) for m in test.metrics])
+
+
+def evaluate_dynamic(sim: Simulator, tests: Sequence[DynamicTest], *, rate_hz: float = 120.0,
+                     progress: Callable[[str], None] | None = None) -> DynamicEvaluation:
+    """Fly every test on ``sim`` (at its current factors) and compare."""
+    t0 = time.perf_counter()
+    out, frames = [], 0
+    for test in tests:
+        if progress:
+            progress(f"flying {test.id} {test.kind}")
+        r = fly_test(sim, test, rate_hz=rate_hz)
+        frames += 0 if r.trajectory is None else len(r.trajectory.time_s)
+        out.append(r)
+    return DynamicEvaluation(sim.name, out, time.perf_counter() - t0, frames)
+
