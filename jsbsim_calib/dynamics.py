@@ -17,8 +17,9 @@ import numpy as np
 from .data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicMetric,
                                  DynamicTest)
 from .errors import CalibError
+from .evaluate import MetricSummary, Summary
 from .jsbsim.simulator import Simulator
-from .jsbsim.trajectory import Trajectory, fly
+from .jsbsim.trajectory import RATE_HZ, Trajectory, fly
 
 
 # --------------------------------------------------------------------------- measurements
@@ -70,6 +71,53 @@ def measure(test: DynamicTest, tr: Trajectory) -> dict[str, float]:
     return {m.name: peak_rate(t, x, PULSE_START_S, math.copysign(1.0, m.measured))}
 
 
+# --------------------------------------------------------------------------- recorded time histories
+# residual scale of each response channel of a recorded maneuver (Part 60-sized: rates 2 deg/s,
+# attitudes and aerodynamic angles 1-2 deg, airspeed 3 kt)
+CHANNEL_SCALES = {"p_deg_s": 2.0, "q_deg_s": 2.0, "r_deg_s": 2.0, "roll_deg": 2.0, "pitch_deg": 1.0,
+                  "beta_deg": 1.0, "alpha_deg": 1.0, "kcas": 3.0}
+AXIS_CHANNELS = {"roll": ("p_deg_s", "roll_deg"), "pitch": ("q_deg_s", "pitch_deg", "alpha_deg", "kcas"),
+                 "yaw": ("r_deg_s", "beta_deg")}
+
+
+@dataclass(frozen=True)
+class RecordedTest:
+    """A maneuver with its recorded response (a flight-test or synthetic time history): the
+    inputs replayed open loop (or with the pilot loops of the maneuver), the response
+    channels compared at the recorded times (signs of :data:`jsbsim_calib.jsbsim.trajectory.RECORD`)."""
+
+    id: str
+    kind: str
+    maneuver: object
+    time_s: np.ndarray
+    channels: dict
+
+    def residuals(self, tr: Trajectory, channels: Sequence[str]) -> tuple[np.ndarray, list[str]]:
+        """(model - recorded) / scale at every recorded time."""
+        out, labels = [], []
+        model = tr.at(self.time_s)
+        for c in channels:
+            if c not in self.channels or c not in model:
+                continue
+            d = self.channels[c]
+            r = (model[c] - d) / CHANNEL_SCALES.get(c, 1.0)
+            out.append(np.where(np.isfinite(r), r, FAIL_RESIDUAL))
+            labels += [f"{self.id} {c} t={t:.2f}" for t in self.time_s]
+        return (np.concatenate(out) if out else np.zeros(0)), labels
+
+
+FAIL_RESIDUAL = 20.0
+
+
+def recorded(test_id: str, kind: str, tr: Trajectory, rate_hz: float = 10.0,
+             channels: Sequence[str] = tuple(CHANNEL_SCALES)) -> RecordedTest:
+    """A flown trajectory as a recorded test (sampled at ``rate_hz``): what a synthetic flight
+    test of a truth aircraft records."""
+    t = np.arange(0.0, tr.time_s[-1] + 1e-9, 1.0 / rate_hz)
+    at = tr.at(t)
+    return RecordedTest(test_id, kind, tr.maneuver, t, {c: at[c] for c in channels})
+
+
 # --------------------------------------------------------------------------- results
 @dataclass
 class MetricResult:
@@ -97,6 +145,7 @@ class MetricResult:
 
 @dataclass
 class TestResult:
+    __test__ = False            # not a pytest test class
     test: DynamicTest
     trajectory: Trajectory | None
     metrics: list[MetricResult]
@@ -112,6 +161,25 @@ class DynamicEvaluation:
 
     def metric_results(self) -> list[MetricResult]:
         return [m for r in self.results for m in r.metrics]
+
+    def by_metric(self) -> Summary:
+        """Accuracy per metric over the tests that measure it (the statistics of
+        :class:`~jsbsim_calib.evaluate.MetricSummary`; a test not flown counts as outside)."""
+        out = {}
+        for name in dict.fromkeys(m.metric.name for m in self.metric_results()):
+            rows = [m for m in self.metric_results() if m.metric.name == name]
+            ok = [m for m in rows if math.isfinite(m.error)]
+            err = np.array([m.error for m in ok])
+            ref = np.array([m.metric.measured for m in ok])
+            nz = ref != 0
+            judged = [m for m in rows if m.within is not None]
+            out[name] = MetricSummary(
+                n=len(rows), rmse=float(np.sqrt(np.mean(err ** 2))) if ok else None,
+                mape=float(100 * np.mean(np.abs(err[nz] / ref[nz]))) if nz.any() else None,
+                nmbe=float(100 * np.mean(err[nz] / ref[nz])) if nz.any() else None,
+                within_pct=float(100.0 * sum(bool(m.within) for m in judged) / len(judged)) if judged else None,
+                failed=len(rows) - len(ok))
+        return out
 
     def summary(self) -> dict:
         rows = self.metric_results()
@@ -135,7 +203,7 @@ def _js(x: float):
     return None if x is None or not math.isfinite(x) else float(x)
 
 
-def fly_test(sim: Simulator, test: DynamicTest, *, rate_hz: float = 120.0) -> TestResult:
+def fly_test(sim: Simulator, test: DynamicTest, *, rate_hz: float = RATE_HZ) -> TestResult:
     try:
         tr = fly(sim, test.maneuver, rate_hz=rate_hz)
     except CalibError as exc:
@@ -144,7 +212,7 @@ def fly_test(sim: Simulator, test: DynamicTest, *, rate_hz: float = 120.0) -> Te
     return TestResult(test, tr, [MetricResult(test.id, m, got.get(m.name, math.nan)) for m in test.metrics])
 
 
-def evaluate_dynamic(sim: Simulator, tests: Sequence[DynamicTest], *, rate_hz: float = 120.0,
+def evaluate_dynamic(sim: Simulator, tests: Sequence[DynamicTest], *, rate_hz: float = RATE_HZ,
                      progress: Callable[[str], None] | None = None) -> DynamicEvaluation:
     """Fly every test on ``sim`` (at its current factors) and compare."""
     t0 = time.perf_counter()

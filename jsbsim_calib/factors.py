@@ -59,8 +59,11 @@ def _f(name, neutral, lower, upper, unit, steps, moves, applies_to, doc, baked=F
 # propeller and engine factors, then fuel flow; stage 2a (flight-test trims) runs the method's
 # steps and refits stage 1 last (jsbsim_calib.calibration.steady and .trims declare what each
 # step fits them to). A factor lists the steps that set it; "effect" marks the factors of the
-# effect library (jsbsim_calib.calibration.effects).
-STEPS = ("steady", "fuel flow", "pitch", "control", "pfactor", "flaps", "steady refit", "effect")
+# effect library (jsbsim_calib.calibration.effects). Stage 2b (jsbsim_calib.calibration.dynamic) runs the
+# dynamic steps, each axis its own fit against flown maneuvers.
+STEPS = ("steady", "fuel flow", "pitch", "control", "pfactor", "flaps", "steady refit", "roll dynamics",
+         "pitch dynamics", "yaw dynamics", "effect")
+DYNAMIC_STEPS = ("roll dynamics", "pitch dynamics", "yaw dynamics")   # stage 2b (time domain)
 STAGE1 = ("steady", "steady refit")          # steps of the 16 coupled stage-1 factors
 POH = ("roc_fpm", "pct_power", "rpm")        # what the stage-1 factors move
 
@@ -129,13 +132,13 @@ FACTORS: tuple[Factor, ...] = (
        "wing strips: section pitching moment (eq. 3.30)",
        "adds to every wing strip's section moment: + nose-up, elevator trims further down"),
     # --- control effectiveness (Table 3.5, eq. 3.35-3.38)
-    _f("K_de_slope", 1.0, 0.5, 3.0, "-", ("control",), ("elevator_deg",),
+    _f("K_de_slope", 1.0, 0.5, 3.0, "-", ("control", "pitch dynamics"), ("elevator_deg",),
        "elevator circulation (eq. 3.36)",
        "scales elevator effectiveness: > 1 smaller trim elevator"),
     _f("K_de_offset", 0.0, -5.0, 5.0, "m2/s", ("control",), ("elevator_deg",),
        "elevator circulation (eq. 3.36)",
        "adds circulation on the elevator span: + tail lift up (nose down), falls with speed"),
-    _f("K_da_slope", 1.0, 0.5, 3.0, "-", ("control",), ("aileron_deg",),
+    _f("K_da_slope", 1.0, 0.5, 3.0, "-", ("control", "roll dynamics"), ("aileron_deg",),
        "aileron circulation (eq. 3.36)",
        "scales aileron effectiveness: > 1 smaller trim aileron"),
     _f("K_da_offset", 0.0, -5.0, 5.0, "m2/s", ("control",), ("aileron_deg",),
@@ -166,16 +169,25 @@ FACTORS: tuple[Factor, ...] = (
     _f("K_dcl_flaps", 1.0, 0.5, 1.5, "-", ("flaps",), ("pitch_deg", "roc_fpm"),
        "flap strips: lift increment of the flap (strip theory)",
        "scales the flap lift increment: < 1 less lift from the flaps, higher flaps-down pitch attitude"),
-    # --- damping (Table 3.7, eq. 3.48-3.56)
-    _f("K_Clp", 0.0, -0.02, 0.02, "-", (), (),
+    # --- damping (Table 3.7, eq. 3.48-3.56): stage 2b, each axis its own fit. The method's bounds
+    # (+-0.02, +-0.1) are for its own model's derivatives; here they are about half of the strip
+    # model's (Cl_p -0.58, Cm_q -12.6, Cn_r -0.13), so that the factor can move the response it
+    # is fitted to (measured: the method's bounds move a roll rate by 1 deg/s, a pitch rate by 0.1).
+    _f("K_Clp", 0.0, -0.3, 0.3, "-", ("roll dynamics",), ("roll_rate_deg_s", "max_roll_rate_deg_s"),
        "rolling moment -K p b/(2V) qbar S b (eq. 3.48)",
-       "extra roll damping: + more damping"),
-    _f("K_Cmq", 0.0, -0.1, 0.1, "-", (), (),
+       "extra roll damping: + more damping, slower steady roll rate"),
+    _f("K_Cmq", 0.0, -6.0, 6.0, "-", ("pitch dynamics",), ("max_pitch_rate_deg_s", "phugoid_damping"),
        "pitching moment -K q c/(2V) qbar S c (eq. 3.51)",
-       "extra pitch damping: + more damping"),
-    _f("K_Cnr", 0.0, -0.02, 0.02, "-", (), (),
+       "extra pitch damping: + more damping, lower peak pitch rate"),
+    _f("K_Cnr", 0.0, -0.07, 0.07, "-", ("yaw dynamics",), ("max_yaw_rate_deg_s",),
        "yawing moment -K r b/(2V) qbar S b (eq. 3.54)",
-       "extra yaw damping: + more damping"),
+       "extra yaw damping: + more damping, lower peak yaw rate"),
+    # not in the method: its pitch factors cannot separate elevator power from pitch stiffness (the
+    # 1-g trims see only their ratio); the turns, the phugoid and the pulses can (README)
+    _f("K_Cm_alpha", 0.0, -0.8, 0.8, "1/rad", ("pitch dynamics",),
+       ("elevator_deg", "pitch_deg", "phugoid_period_s", "max_pitch_rate_deg_s"),
+       "pitching moment K alpha qbar S c (stiffness)",
+       "adds K alpha to the pitching moment: + less stable (neutral point forward), less trim elevator per CL"),
 )
 
 REGISTRY: dict[str, Factor] = {f.name: f for f in FACTORS}

@@ -18,13 +18,16 @@ from pathlib import Path
 from typing import Callable
 
 from .calibration.closeloop import CloseLoopResult, close_loop
+from .calibration.dynamic import DYNAMIC_STEPS, DynamicStep, dynamic_stage
 from .calibration.fit import FitResult
 from .calibration.points import stage1_subset
 from .calibration.steady import steady_factors, steady_stage
 from .calibration.trims import TRIM_STEPS, TrimStep, trims_stage
-from .data.flighttest import QuirkWarning
+from .data.dynamic_tests import DynamicTest, load_dynamic_tests
+from .data.flighttest import QuirkWarning, load_control_travel
 from .data.load import load_dataset
 from .data.schemas import Dataset
+from .dynamics import DynamicEvaluation, evaluate_dynamic
 from .errors import ModelError
 from .evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
 from .factors import FactorSet
@@ -189,6 +192,78 @@ def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps:
     return TrimsCalibration(name, results, evaluations, poh_before, poh_after,
                             {k: thesis_summary(ds) for k, ds in ft.items()}, final, list(skip),
                             time.perf_counter() - t0, trims)
+
+
+# --------------------------------------------------------------------------- stage 2b
+@dataclass
+class DynamicCalibration:
+    """Stage 2b: the fits per axis, the dynamic tests and the trims and POH before and after."""
+
+    aircraft: str
+    steps: list[FitResult]
+    tests: list[DynamicTest]
+    dynamic_before: DynamicEvaluation
+    dynamic_after: DynamicEvaluation
+    trims_before: dict[str, Evaluation]
+    trims_after: dict[str, Evaluation]
+    poh_after: dict[str, Evaluation]
+    factors: FactorSet
+    wall_time_s: float
+    trims: int
+
+    def summaries(self) -> dict[str, Summary]:
+        """What the verdicts judge: the POH, the trims and the dynamic tests after the stage."""
+        return {**{k: e.summary() for k, e in self.poh_after.items()},
+                **{k: e.summary() for k, e in self.trims_after.items()}, "dynamic": self.dynamic_after.by_metric()}
+
+    def summary(self) -> dict:
+        """The stage's record (calibration.json), JSON-safe."""
+        return {
+            "aircraft": self.aircraft, "steps": [r.summary() for r in self.steps],
+            "dynamic_before": self.dynamic_before.to_json(), "dynamic_after": self.dynamic_after.to_json(),
+            "flight_test_after": {k: summary_dict(e.summary()) for k, e in self.trims_after.items()},
+            "poh_after": {k: summary_dict(e.summary()) for k, e in self.poh_after.items()},
+        }
+
+
+def dynamic_tests(root: Path, name: str) -> list[DynamicTest]:
+    """The aircraft's dynamic tests: its flight-test results file with the snapshots' initial conditions."""
+    geom = load_aircraft_geometry(root, name)
+    missing = [k for k in ("flight_test", "flight_test_results") if k not in geom.data_files]
+    if missing or geom.control_travel_file is None:
+        raise ModelError(f"aircraft/{name}/geometry.toml names no {', '.join(missing) or 'control travel'} "
+                         "([data] table): no dynamic tests")
+    return load_dynamic_tests(geom.data_files["flight_test_results"], geom.data_files["flight_test"],
+                              load_control_travel(geom.control_travel_file))
+
+
+def run_dynamic(root: Path | str, name: str, *, start: FactorSet | None = None,
+                steps: tuple[DynamicStep, ...] = DYNAMIC_STEPS,
+                progress: Callable[[str], None] | None = None) -> DynamicCalibration:
+    """Stage 2b on the aircraft's dynamic tests, from its current factors (stage 2a's)."""
+    root = Path(root)
+    t0 = time.perf_counter()
+    say = progress or (lambda s: None)
+    tests = dynamic_tests(root, name)
+    geom = load_aircraft_geometry(root, name)
+    keys = tuple(k for k in FLIGHT_TEST_KINDS.values() if k in geom.data_files)
+    ft = {ds.kind: ds for ds in aircraft_data(root, name, keys).values()}
+    poh = aircraft_data(root, name)
+    with Simulator(root, name) as sim:
+        start = sim.factors if start is None else start
+        sim.set_factors(start)
+        say(f"flying {len(tests)} dynamic tests")
+        before = evaluate_dynamic(sim, tests)
+        trims_before = {k: evaluate_dataset(sim, ds) for k, ds in ft.items()}
+        results = dynamic_stage(sim, tests, {**ft, **poh}, start=start, steps=steps, progress=say)
+        final = results[-1].final if results else start
+        sim.set_factors(final)
+        after = evaluate_dynamic(sim, tests)
+        trims_after = {k: evaluate_dataset(sim, ds) for k, ds in ft.items()}
+        poh_after = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
+        trims = sim.trims
+    return DynamicCalibration(name, results, tests, before, after, trims_before, trims_after, poh_after, final,
+                              time.perf_counter() - t0, trims)
 
 
 # --------------------------------------------------------------------------- close the loop

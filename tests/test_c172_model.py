@@ -483,6 +483,17 @@ def _k_cnr(sim):
     _damping(sim, "K_Cnr", "Cn_r")
 
 
+@check("K_Cm_alpha")
+def _k_cm_alpha(sim):
+    sim.set_factors(FactorSet())
+    d0 = trim_derivatives(sim, CRUISE)
+    k = moved("K_Cm_alpha")
+    sim.set_factors(FactorSet({"K_Cm_alpha": k}))
+    d1 = trim_derivatives(sim, CRUISE)
+    assert d1.Cm_alpha - d0.Cm_alpha == pytest.approx(k, rel=0.02)     # + K per radian: less stable
+    assert d1.Cm_q == pytest.approx(d0.Cm_q, rel=1e-6)
+
+
 @pytest.mark.parametrize("name", [f.name for f in FACTORS])
 def test_factor_moves_result_as_documented(baseline, name):
     assert name in CHECKS, f"no direction check for factor {name}"

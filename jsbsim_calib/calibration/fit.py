@@ -127,7 +127,8 @@ def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: Fac
 
 def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[[FactorSet], tuple[np.ndarray, list[str]]],
         *, sim: Simulator, max_nfev: int | None = MAX_NFEV, progress: Callable[[str], None] | None = None,
-        ftol: float = FIT_TOL, prior: float = PRIOR_WEIGHT, prior_center: FactorSet | None = None) -> FitResult:
+        ftol: float = FIT_TOL, prior: float = PRIOR_WEIGHT, prior_center: FactorSet | None = None,
+        legs: Sequence[tuple[float, float]] | None = None) -> FitResult:
     """Least-squares fit of ``names`` (others held at ``start``).
 
     ``prior`` adds the residuals ``prior * (x - x_center)`` (x = normalized factor, centre
@@ -142,7 +143,8 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     the strong prior keeps small while the residuals are large), then a polish with a small
     finite-difference step. A leg restarts the optimizer from its result (a fresh damping:
     it can stop on a kink of the trims, whose tables interpolate linearly) until a restart gains less than
-    :data:`RESTART_GAIN` of the cost.
+    :data:`RESTART_GAIN` of the cost. ``legs`` replaces :data:`LEGS` (a fit of a few
+    well-identified factors needs no path of priors).
     """
     names = list(names)
     t0 = time.perf_counter()
@@ -190,7 +192,7 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     if progress:
         progress(f"{stage}: start cost {cost0:.4g} with {len(r0)} residuals, {len(names)} factors")
     x, nfev, res = x0, 0, None
-    for weight, step in (LEGS if prior else LEGS[-2:]):        # no prior: no path of priors
+    for weight, step in (legs if legs is not None else LEGS if prior else LEGS[-2:]):   # no prior: no path
         leg.update(weight=weight, step=step)
         cost = math.inf
         for _ in range(1 + MAX_RESTARTS):
@@ -212,3 +214,13 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     return FitResult(stage, names, start, final, cost0, 0.5 * numerics.sum_sq(r_final), nfev,
                      njev[0], int(res.status), str(res.message), time.perf_counter() - t0,
                      sim.trims - trims0, se, corr, history, list(labels), r_final)
+
+
+def unfitted(stage: str, names: Sequence[str], start: FactorSet,
+             residuals: Callable[[FactorSet], tuple[np.ndarray, list[str]]], sim: Simulator) -> FitResult:
+    """The record of a step that fits nothing: its residuals at ``start``, factors unchanged."""
+    t0, trims0 = time.perf_counter(), sim.trims
+    r, labels = residuals(start)
+    cost = 0.5 * numerics.sum_sq(r)
+    return FitResult(stage, list(names), start, start, cost, cost, 1, 0, 0, "nothing fitted",
+                     time.perf_counter() - t0, sim.trims - trims0, {n: None for n in names}, {}, [], list(labels), r)

@@ -46,8 +46,8 @@ PULSE_START_S, PULSE_LENGTH_S, RAMP_S = 0.5, 1.0, 0.1
 PULSE_WINDOW_S = 6.0
 ROLL_STEP_START_S = 0.5
 ROLL_WINDOW_S = (1.0, 3.0)        # after the step: where the steady roll rate is averaged
-PHUGOID_ELEVATOR_DEG = -3.0       # JSBSim sign (trailing edge up)
-PHUGOID_HOLD_S = 6.0
+PHUGOID_ELEVATOR_DEG = -1.0       # JSBSim sign (trailing edge up): with the hold, about 10 kt slower (C172)
+PHUGOID_HOLD_S = 4.0
 PHUGOID_DURATION_S = 150.0
 
 RESULT_COLUMNS = ("table", "title", "metric", "tolerance", "flight_test")

@@ -47,6 +47,15 @@ METRICS: dict[str, Metric] = {
     "elevator_deg": Metric("elevator_deg", 1.0, unit="deg", doc="elevator, data sign (+ trailing edge up)"),
     "aileron_deg": Metric("aileron_deg", 1.0, unit="deg", doc="aileron, data sign (+ right trailing edge up)"),
     "rudder_deg": Metric("rudder_deg", 1.0, unit="deg", doc="rudder, data sign (+ trailing edge right)"),
+    # dynamic tests (Part 60; their data files state the same tolerances)
+    "phugoid_period_s": Metric("phugoid_period_s", 0.10, relative=True, unit="s", doc="phugoid period"),
+    "roll_rate_deg_s": Metric("roll_rate_deg_s", 2.0, unit="deg/s", doc="steady roll rate after a wheel step"),
+    "max_pitch_rate_deg_s": Metric("max_pitch_rate_deg_s", 0.20, relative=True, unit="deg/s",
+                                   doc="peak pitch rate after a column pulse"),
+    "max_roll_rate_deg_s": Metric("max_roll_rate_deg_s", 0.20, relative=True, unit="deg/s",
+                                  doc="peak roll rate after a wheel pulse"),
+    "max_yaw_rate_deg_s": Metric("max_yaw_rate_deg_s", 0.20, relative=True, unit="deg/s",
+                                 doc="peak yaw rate after a pedal pulse"),
 }
 
 

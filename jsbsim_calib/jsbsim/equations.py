@@ -373,7 +373,9 @@ def _roll_and_pitch(terms: _Terms) -> list[Axis]:
                                   product(factor("K_cd0_slope"), t("body_CD"), number(c("fus_arm_z") / m.cbar_m))))),
             Function("aero/moment/m_q", "wing pitch damping", moment("metrics/cbarw-ft", t("Cm_q"), terms.pitch_rate())),
             Function("aero/moment/m_damping", "extra pitch damping -K_Cmq q c/(2V) (eq. 3.51)",
-                     moment("metrics/cbarw-ft", number(-1.0), factor("K_Cmq"), terms.pitch_rate()))))]
+                     moment("metrics/cbarw-ft", number(-1.0), factor("K_Cmq"), terms.pitch_rate())),
+            Function("aero/moment/m_alpha", "extra pitch stiffness K_Cm_alpha alpha (stage 2b)",
+                     moment("metrics/cbarw-ft", factor("K_Cm_alpha"), prop(ALPHA_RAD)))))]
 
 
 def _yaw(terms: _Terms, geom: AircraftGeometry) -> Axis:

@@ -44,7 +44,7 @@ class Gains:
 
     pitch_kp: float = 0.06        # elevator per deg of pitch error
     pitch_ki: float = 0.02        # per deg s
-    pitch_kd: float = 0.03        # per deg/s of pitch rate
+    pitch_kd: float = 0.03        # per deg/s of pitch-attitude rate
     altitude_kp: float = 0.05     # deg of pitch per ft of altitude error
     altitude_kd: float = 0.15     # deg of pitch per ft/s of vertical speed
     altitude_max_deg: float = 8.0  # largest pitch change the altitude loop asks for
@@ -54,7 +54,7 @@ class Gains:
     sideslip_kp: float = 0.15     # rudder per deg of sideslip
     sideslip_ki: float = 0.05
     heading_kp: float = 0.05      # rudder per deg of heading error
-    yaw_kd: float = 0.03          # rudder per deg/s of yaw rate (any yaw mode)
+    yaw_kd: float = 0.03          # rudder per deg/s of sideslip rate (any yaw mode)
     speed_kp: float = 0.05        # throttle per knot
     speed_ki: float = 0.01
 
@@ -129,7 +129,7 @@ def pilot_system(root) -> None:
         prop(MEASURED["pitch"]))))
     _integrator(ch, "pilot/pitch-integral", "pilot/pitch-error-deg", 1.0 / GAINS.pitch_ki)
     _fcs_function(ch, "pilot/elevator", operation("product", _mode_on("pitch"), operation(
-        "difference", operation("product", _g("pitch_kd"), prop("velocities/q-rad_sec"), value(57.29577951308232)),
+        "difference", operation("product", _g("pitch_kd"), prop("velocities/thetadot-rad_sec"), value(57.29577951308232)),
         operation("sum", operation("product", _g("pitch_kp"), prop("pilot/pitch-error-deg")),
                   operation("product", _g("pitch_ki"), prop("pilot/pitch-integral"))))),
         clip=(-1, 1), output=OUTPUTS["pitch"])
@@ -140,7 +140,7 @@ def pilot_system(root) -> None:
     _fcs_function(ch, "pilot/aileron", operation("product", _mode_on("roll"), operation(
         "difference", operation("sum", operation("product", _g("roll_kp"), prop("pilot/roll-error-deg")),
                                 operation("product", _g("roll_ki"), prop("pilot/roll-integral"))),
-        operation("product", _g("roll_kd"), prop("velocities/p-rad_sec"), value(57.29577951308232)))),
+        operation("product", _g("roll_kd"), prop("velocities/phidot-rad_sec"), value(57.29577951308232)))),
         clip=(-1, 1), output=OUTPUTS["roll"])
 
     ch = sub(sy, "channel", name="pilot yaw")
@@ -154,7 +154,7 @@ def pilot_system(root) -> None:
             "difference", prop(TARGETS["heading"]), prop(MEASURED["heading"])), value(540)), value(360)),
         value(180))))
     _fcs_function(ch, "pilot/rudder", operation("product", _mode_on("yaw"), operation(
-        "difference", operation("product", _g("yaw_kd"), prop("velocities/r-rad_sec"), value(57.29577951308232)),
+        "difference", operation("product", _g("yaw_kd"), prop("aero/betadot-deg_sec"), value(-1.0)),
         operation("sum", operation("product", _g("sideslip_kp"), prop("pilot/beta-error-deg")),
                   operation("product", _g("sideslip_ki"), prop("pilot/beta-integral")),
                   operation("product", _g("heading_kp"), prop("pilot/heading-error-deg"))))),

@@ -25,7 +25,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 # Reference data an aircraft folder can name ([data] table of geometry.toml)
-DATA_KINDS = ("poh_climb", "poh_cruise", "flight_test", "flap_climb", "g1000")
+DATA_KINDS = ("poh_climb", "poh_cruise", "flight_test", "flap_climb", "flight_test_results", "g1000")
 
 _QTY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S*)\s*$")
 

@@ -331,3 +331,35 @@ def plot_log(log: G1000Log, segments: Sequence[Segment], *, model: pd.DataFrame 
     title = log.airframe.get("airframe_name", "G1000 log")
     fig.suptitle(f"{title}: {Path(log.path).name}", fontsize=10)
     return fig
+
+
+DYNAMIC_LABELS = {"q_deg_s": "pitch rate [deg/s]", "p_deg_s": "roll rate [deg/s]", "r_deg_s": "yaw rate [deg/s]",
+                  "kcas": "KCAS [kt]"}
+
+
+def dynamic_response(results: Mapping[str, object], ax=None) -> Figure:
+    """One dynamic test flown by several models (``results``: label -> ``dynamics.TestResult``):
+    the channel its metric reads over maneuver time, with the flight-test value (a line for a
+    rate the model should reach, the text for a period)."""
+    fig, ax = _ax(ax, (6.4, 3.6))
+    first = next(iter(results.values()))
+    test = first.test
+    for label, r in results.items():
+        if r.trajectory is not None:
+            ax.plot(r.trajectory.time_s, r.trajectory[test.channel], label=label, **_style(
+                "baseline" if label == "before" else "calibrated" if label == "after" else label))
+    m = test.metrics[0]
+    if test.kind != "phugoid":
+        ax.axhline(m.measured, color="k", lw=1.0, ls="-.", label=f"flight test {m.measured:g} {m.unit}")
+        tol = m.tol()
+        if math.isfinite(tol):
+            ax.axhspan(m.measured - tol, m.measured + tol, color="k", alpha=0.08, lw=0,
+                       label=f"tolerance {m.tolerance_text()}")
+    else:
+        ax.set_title(f"flight test: period {m.measured:g} s", fontsize=9)
+    ax.set_xlabel("maneuver time [s]")
+    ax.set_ylabel(DYNAMIC_LABELS.get(test.channel, test.channel))
+    ax.legend(fontsize=7, loc="best")
+    ax.grid(alpha=0.3)
+    fig.suptitle(f"{test.id} {test.title}", fontsize=9)
+    return fig

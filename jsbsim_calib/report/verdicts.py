@@ -17,18 +17,19 @@ from ..data.schemas import METRICS
 
 @dataclass(frozen=True)
 class Target:
-    kind: str              # data kind: poh_climb, poh_cruise, snapshot, flap_climb
+    kind: str              # data kind: poh_climb, poh_cruise, snapshot, flap_climb, dynamic
     metric: str
-    statistic: str         # rmse (at most) | within_pct (at least)
+    statistic: str         # rmse, mape (at most) | within_pct (at least)
     limit: float
 
     def describe(self) -> str:
-        return f"RMSE <= {self.limit:g}" if self.statistic == "rmse" else f"within >= {self.limit:g} %"
+        return {"rmse": f"RMSE <= {self.limit:g}", "mape": f"error <= {self.limit:g} %"}.get(
+            self.statistic, f"within >= {self.limit:g} %")
 
     def met_by(self, value: float | None) -> bool:
         if value is None or not math.isfinite(value):
             return False
-        return value <= self.limit if self.statistic == "rmse" else value >= self.limit
+        return value >= self.limit if self.statistic == "within_pct" else value <= self.limit
 
 
 TARGETS: tuple[Target, ...] = (
@@ -44,6 +45,8 @@ TARGETS: tuple[Target, ...] = (
     Target("snapshot", "aileron_deg", "within_pct", 95.0),
     Target("snapshot", "rudder_deg", "within_pct", 95.0),
     Target("flap_climb", "roc_fpm", "within_pct", 100.0),
+    Target("dynamic", "phugoid_period_s", "mape", 5.0),          # stage 2b (issue): within 5 % of the flight test
+    Target("dynamic", "roll_rate_deg_s", "within_pct", 100.0),
 )
 
 
@@ -71,13 +74,13 @@ def verdicts(summaries: Mapping[str, Mapping[str, Mapping]], targets=TARGETS) ->
 def format_verdicts(vs: list[Verdict], model: str) -> str:
     """The verdict table the console shows at the end of a calibration."""
     lines = [f"Verdicts of the {model}:",
-             f"{'data':<11} {'metric':<13} {'tolerance':>14} {'target':>15} {'measured':>9}  verdict"]
+             f"{'data':<11} {'metric':<17} {'tolerance':>14} {'target':>15} {'measured':>9}  verdict"]
     for v in vs:
         m = METRICS[v.target.metric]
         tol = f"+-{m.tolerance * 100:g} %" if m.relative else f"+-{m.tolerance:g} {m.unit}"
         meas = "n/a" if v.measured is None or not math.isfinite(v.measured) else (
-            f"{v.measured:.1f} %" if v.target.statistic == "within_pct" else f"{v.measured:.2f}")
-        lines.append(f"{v.target.kind:<11} {v.target.metric:<13} {tol:>14} {v.target.describe():>15} {meas:>9}  "
+            f"{v.measured:.1f} %" if v.target.statistic in ("within_pct", "mape") else f"{v.measured:.2f}")
+        lines.append(f"{v.target.kind:<11} {v.target.metric:<17} {tol:>14} {v.target.describe():>15} {meas:>9}  "
                      f"{'PASS' if v.passed else 'MISS'}")
     n = sum(v.passed for v in vs)
     lines.append(f"{n} of {len(vs)} targets met")
