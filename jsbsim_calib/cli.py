@@ -2,9 +2,10 @@
 reports, print).
 
     jsbsim-calib generate AIRCRAFT [--baseline]
-    jsbsim-calib calibrate AIRCRAFT --stage steady|trims|all [--no-write] [--start current] [--skip STEP]
+    jsbsim-calib calibrate AIRCRAFT --stage steady|trims|dynamic|all [--no-write] [--start current] [--skip STEP]
     jsbsim-calib evaluate AIRCRAFT --data FILE [--baseline] [--json OUT]
     jsbsim-calib synth --truth AIRCRAFT_DIR --out FILE.csv [--seed N] [--points N] [--noise X]
+    jsbsim-calib synth --truth AIRCRAFT_DIR --plan PLAN --out DIR [--seed N] [--noise X]
     jsbsim-calib close-loop AIRCRAFT --data FILE [--json OUT] [--skip STEP] [--out NAME]
     jsbsim-calib check AIRCRAFT [--json OUT]
     jsbsim-calib airfoil NAME
@@ -27,12 +28,13 @@ from .jsbsim.probes import report
 from .jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration, write_calibrated
 from .jsbsim.simulator import Simulator
 from .physics.airfoil import regenerate
-from .report.markdown import (write_close_loop_report, write_evaluation_report, write_log_report,
+from .report.markdown import (write_close_loop_report, write_dynamic_report, write_evaluation_report, write_log_report,
                               write_steady_report, write_trims_report)
 from .report.text import evaluation_table, format_stability, format_summary
 from .report.verdicts import format_verdicts, verdicts
 from .synth import synthesize, write_csv
-from .workflow import load_data_for, run_close_loop, run_steady, run_trims
+from .synth_maneuvers import check_settings, load_plan, synthesize_maneuvers
+from .workflow import load_data_for, run_close_loop, run_dynamic, run_steady, run_trims
 
 
 def _progress(quiet: bool):
@@ -98,6 +100,27 @@ def _calibrate_trims(a, root: Path, say, start=None):
                          **{k: e.summary() for k, e in res.evaluations[last].items()}}
 
 
+def _calibrate_dynamic(a, root: Path, say, start=None):
+    res = run_dynamic(root, a.aircraft, start=start, progress=say)
+    for r in res.steps:
+        print(r.report())
+    print("\ndynamic tests (before -> after stage 2b):")
+    for rb, ra in zip(res.dynamic_before.results, res.dynamic_after.results):
+        for mb, ma in zip(rb.metrics, ra.metrics):
+            print(f"  {ra.test.id:<6} {ma.metric.name:<22} flight test {ma.metric.measured:8.3g}   model "
+                  f"{mb.model:8.3g} -> {ma.model:8.3g}   {ma.metric.tolerance_text():>16}  {ma.verdict}")
+    for kind, ev in res.trims_after.items():
+        print(f"\n{kind}: after stage 2b")
+        print(format_summary(ev.summary()))
+    print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims, "
+          f"{res.dynamic_after.frames} frames per dynamic evaluation")
+    if not a.no_write:
+        files = write_calibrated(root, a.aircraft, res.factors, "dynamic", res.summary())
+        print("written: " + ", ".join(str(f) for f in files))
+    print(f"report: {write_dynamic_report(res, Path(a.report_dir) / a.aircraft)}")
+    return res.factors, res.summaries()
+
+
 def cmd_calibrate(a) -> int:
     root = Path(a.root)
     say = _progress(a.quiet)
@@ -114,6 +137,16 @@ def cmd_calibrate(a) -> int:
             print()
             factors, summaries = _calibrate_trims(a, root, say, start=factors)
             final = "stage 2a (flight-test trims, after stage 1)"
+    if a.stage in ("dynamic", "all"):
+        if "flight_test_results" not in load_aircraft_geometry(root, a.aircraft).data_files:
+            if a.stage == "dynamic":
+                raise CalibError(f"aircraft/{a.aircraft}/geometry.toml names no flight_test_results data ([data] "
+                                 "table): no dynamic tests")
+            print(f"\n{a.aircraft}: no dynamic flight-test data, stage 2b skipped")
+        else:
+            print()
+            factors, summaries = _calibrate_dynamic(a, root, say, start=factors)
+            final = "stage 2b (dynamic tests, after stages 1 and 2a)"
     where = "not written (--no-write)" if a.no_write else f"written to {root / 'aircraft' / a.aircraft}"
     print(f"\nfinal model: {final}, {where}")
     print(format_verdicts(verdicts(summaries), f"{a.aircraft} model from {final}"))
@@ -140,12 +173,27 @@ def cmd_evaluate(a) -> int:
 
 
 def cmd_synth(a) -> int:
+    check_settings(a.seed, a.noise)
+    if a.plan:
+        return _synth_plan(a)
     with Simulator.from_dir(Path(a.truth), Path(a.root)) as truth:
         rows, skipped = synthesize(truth, n=a.points, seed=a.seed, noise=a.noise, progress=_progress(a.quiet))
     write_csv(rows, Path(a.out))
     for s in skipped:
         print(f"left out (the truth does not trim): {s}", file=sys.stderr)
     print(f"{len(rows)} snapshots of {Path(a.truth).name} (seed {a.seed}, noise x{a.noise:g}) written to {a.out}")
+    return 0
+
+
+def _synth_plan(a) -> int:
+    plan = load_plan(a.plan)
+    with Simulator.from_dir(Path(a.truth), Path(a.root)) as truth:
+        files = synthesize_maneuvers(truth, plan, Path(a.out), seed=a.seed, noise=a.noise,
+                                     progress=_progress(a.quiet))
+    for f in files:
+        print(f)
+    print(f"{len(files)} time histories of {Path(a.truth).name} (plan {plan.name}, {plan.sample_rate_hz:g} Hz, "
+          f"seed {a.seed}, noise x{a.noise:g}) written to {a.out}")
     return 0
 
 
@@ -200,9 +248,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     c = sub.add_parser("calibrate", help="run a calibration stage and write the calibrated aircraft")
     c.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
-    c.add_argument("--stage", required=True, choices=("steady", "trims", "all"),
+    c.add_argument("--stage", required=True, choices=("steady", "trims", "dynamic", "all"),
                    help="steady: POH climb/cruise (stage 1, resets later stages); trims: flight-test trims "
-                        "(stage 2a, from the aircraft's stage-1 factors); all: both in order")
+                        "(stage 2a, from the aircraft's stage-1 factors); dynamic: damping and pitch axis on the "
+                        "dynamic tests (stage 2b, from the current factors); all: the three in order")
     c.add_argument("--start", choices=("neutral", "current"), default="neutral",
                    help="start from neutral factors (default, reproducible) or the current calibration")
     c.add_argument("--skip", action="append", metavar="STEP",
@@ -220,11 +269,14 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
     e.set_defaults(func=cmd_evaluate)
 
-    y = sub.add_parser("synth", help="synthetic flight-test snapshots flown by a truth aircraft folder")
+    y = sub.add_parser("synth", help="synthetic flight-test snapshots (or, with --plan, time histories) flown by a "
+                                     "truth aircraft folder")
     y.add_argument("--truth", required=True, help="aircraft folder (its XML flies as it stands)")
-    y.add_argument("--out", required=True, help="snapshot CSV to write")
+    y.add_argument("--out", required=True, help="snapshot CSV to write; with --plan: the directory of the time histories")
+    y.add_argument("--plan", help="fly a maneuver plan (TOML file, or 'level5' for the packaged Level 5 plan) and "
+                                  "write one CSV + JSON per maneuver (format 1)")
     y.add_argument("--seed", type=int, default=0, help="seed of the campaign's random draws (default 0)")
-    y.add_argument("--points", type=int, default=48, help="number of trims of the campaign (default 48)")
+    y.add_argument("--points", type=int, default=48, help="number of trims of the campaign (default 48; not with --plan)")
     y.add_argument("--noise", type=float, default=1.0, help="scale of the measurement noise (0: none)")
     y.set_defaults(func=cmd_synth)
 
