@@ -10,12 +10,15 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from pathlib import Path
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
 from .data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicMetric,
                                  DynamicTest)
+from .data.flighttest import ControlAxis
+from .data.timehistory import TimeHistory, load_time_histories, maneuver_from_time_history
 from .errors import CalibError
 from .evaluate import MetricSummary, Summary
 from .jsbsim.simulator import Simulator
@@ -116,6 +119,27 @@ def recorded(test_id: str, kind: str, tr: Trajectory, rate_hz: float = 10.0,
     t = np.arange(0.0, tr.time_s[-1] + 1e-9, 1.0 / rate_hz)
     at = tr.at(t)
     return RecordedTest(test_id, kind, tr.maneuver, t, {c: at[c] for c in channels})
+
+
+def recorded_test(th: TimeHistory, travel: Mapping[str, ControlAxis] | None = None) -> RecordedTest:
+    """A format-1 time history as a recorded test: its inputs replayed from the trim at its
+    first sample (with the pilot loops its sidecar names; cockpit controls through ``travel``),
+    its response channels (those of :data:`CHANNEL_SCALES` it has) compared at its sample times
+    from 0. The data's signs of these channels are JSBSim's (:data:`~jsbsim_calib.jsbsim.trajectory.RECORD`)."""
+    maneuver = maneuver_from_time_history(th, pilot=th.meta.pilot, travel=travel)
+    t = th.time_s - th.time_s[0]
+    channels = {c: th.channel(c) for c in CHANNEL_SCALES if c in th.channels}
+    return RecordedTest(th.meta.test_id, th.meta.kind, maneuver, t, channels)
+
+
+def load_recorded_tests(dir_or_files, travel: Mapping[str, ControlAxis] | None = None) -> list[RecordedTest]:
+    """Every time history of directories and/or CSV files (:func:`load_time_histories`: each
+    directory's records by name, then the files given) as a recorded test."""
+    items = [dir_or_files] if isinstance(dir_or_files, (str, Path)) else list(dir_or_files)
+    records = [th for d in items if Path(d).is_dir() for th in load_time_histories(Path(d))]
+    files = [Path(f) for f in items if not Path(f).is_dir()]
+    records += load_time_histories(files) if files else []
+    return [recorded_test(th, travel) for th in records]
 
 
 # --------------------------------------------------------------------------- results

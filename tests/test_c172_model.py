@@ -491,7 +491,7 @@ def _k_cm_alpha(sim):
     sim.set_factors(FactorSet({"K_Cm_alpha": k}))
     d1 = trim_derivatives(sim, CRUISE)
     assert d1.Cm_alpha - d0.Cm_alpha == pytest.approx(k, rel=0.02)     # + K per radian: less stable
-    assert d1.Cm_q == pytest.approx(d0.Cm_q, rel=1e-6)
+    assert d1.Cm_q == pytest.approx(d0.Cm_q, rel=1e-2)      # only through the trim alpha
 
 
 @pytest.mark.parametrize("name", [f.name for f in FACTORS])

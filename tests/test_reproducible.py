@@ -29,7 +29,7 @@ from jsbsim_calib.evaluate import evaluate_dataset
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import QuirkWarning
-from jsbsim_calib.workflow import aircraft_data, run_steady, run_trims
+from jsbsim_calib.workflow import aircraft_data, run_dynamic, run_steady, run_trims
 
 REPO = Path(__file__).resolve().parents[1]
 PERTURBATION = 1e-8           # relative to the normalized range: a round-off-sized start change
@@ -123,16 +123,21 @@ def test_main_job_rewrites_the_committed_c172_byte_for_byte(tmp_path):
 
 
 def test_c172_fit_from_a_perturbed_start_lands_on_the_committed_factors():
-    """Stage 1 and stage 2a, started 1e-8 away: factors within one standard error, every
+    """Stages 1, 2a and 2b, started 1e-8 away: factors within one standard error, every
     prediction within a tenth of its tolerance."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", QuirkWarning)
         steady = run_steady(REPO, "c172", start=_perturbed_start())
         trims = run_trims(REPO, "c172", start=steady_factors(steady.factors))
+        final = run_dynamic(REPO, "c172", start=trims.factors).factors
     record = _committed("c172")
-    fitted = [n for s in record["stages"]["trims"]["steps"] for n in s["factors"]]
-    _assert_factors_close(trims.factors, record, _stderr(record, "steady") | _stderr(record, "trims"), fitted)
-    _assert_predictions_close("c172", trims.factors, ("poh_climb", "poh_cruise", "flight_test", "flap_climb"))
+    stages = ("steady", "trims", "dynamic")
+    fitted = [n for st in stages[1:] for s in record["stages"][st]["steps"] for n in s["factors"]]
+    stderr = {}
+    for st in stages:                       # the standard error of the fit that set each factor last
+        stderr.update(_stderr(record, st))
+    _assert_factors_close(final, record, stderr, list(dict.fromkeys(fitted)))
+    _assert_predictions_close("c172", final, ("poh_climb", "poh_cruise", "flight_test", "flap_climb"))
 
 
 def test_sr20_steady_fit_from_a_perturbed_start_lands_on_the_committed_factors():

@@ -109,9 +109,10 @@ def test_real_data_quirks_are_reported_and_left_out():
         ds = load_dataset(SNAPSHOTS, control_travel=TRAVEL)
     msgs = [str(w.message) for w in rec]
     assert any("C.20" in m and "column_in -1.5" in m and "outside the column travel" in m for m in msgs)
+    assert any("C.57" in m and "pedal_in 28" in m and "outside the pedals travel" in m for m in msgs)
     assert sum("no flight data" in m for m in msgs) == 7
-    assert len(ds.frame) == 18 and "C.20" not in set(ds.frame["table"])
-    assert ds.extra["rows"] == 26
+    assert len(ds.frame) == 20 and not {"C.20", "C.57"} & set(ds.frame["table"])
+    assert ds.extra["rows"] == 29
 
 
 def test_synthetic_quirks_each_named_with_row_and_reason(tmp_path):
@@ -137,8 +138,8 @@ def test_synthetic_quirks_each_named_with_row_and_reason(tmp_path):
     assert has("C.36", "aileron_deg -6", "disagrees with wheel_deg")
     assert has("C.39", "impossible pedal_in 30", "outside the pedals travel")
     left = set(ds.frame["table"])
-    assert not left & {"C.18", "C.24", "C.30", "C.36", "C.39", "C.20"}
-    assert len(ds.frame) == 13
+    assert not left & {"C.18", "C.24", "C.30", "C.36", "C.39", "C.20", "C.57"}
+    assert len(ds.frame) == 15
 
 
 def test_unreadable_value_is_an_error_naming_line_and_column(tmp_path):
@@ -201,21 +202,22 @@ def test_evaluate_cli_on_snapshots_writes_the_schema_with_left_out_rows(tmp_path
     assert "warning: c172_flight_test_snapshots.csv: C.20" in r.stderr
     d = json.loads(out.read_text())
     assert set(d["summary"]) == {"pitch_deg", "elevator_deg", "aileron_deg", "rudder_deg"}
-    assert len(d["points"]) == 18 and d["points"][0]["table"] == "C.1"
-    assert {e["row"] for e in d["excluded"]} == {"C.11", "C.13", "C.15", "C.16", "C.17", "C.20", "C.37", "C.38"}
+    assert len(d["points"]) == 20 and d["points"][0]["table"] == "C.1"
+    assert {e["row"] for e in d["excluded"]} == {"C.11", "C.13", "C.15", "C.16", "C.17", "C.20", "C.37", "C.38",
+                                                  "C.57"}
     for s in d["summary"].values():
         assert set(s) == {"n", "rmse", "mape", "nmbe", "within_pct", "failed"}
 
 
 def test_committed_c172_keeps_its_measured_flight_test_accuracy(repo):
-    """Measured when the product was calibrated (stage 1 then 2a, reports/c172/trims.md)."""
+    """Measured when the product was calibrated (stages 1, 2a, 2b; reports/c172/dynamic.md)."""
     with Simulator(repo, "c172") as sim:
         snap = evaluate_dataset(sim, _load()).summary()
         flap = evaluate_dataset(sim, load_dataset(repo / "data" / "c172_flight_test_flap_climb.csv")).summary()
-    # measured: pitch 88.9 % / 0.61 deg, elevator 88.9 % / 0.68, aileron 100 % / 0.33, rudder
-    # 72.2 % / 0.78, flaps-10 climbs 100 % / 48.8 fpm
-    assert snap["pitch_deg"].within_pct >= 88.0 and snap["pitch_deg"].rmse < 0.65
-    assert snap["elevator_deg"].within_pct >= 88.0 and snap["elevator_deg"].rmse < 0.72
-    assert snap["aileron_deg"].within_pct == 100.0 and snap["aileron_deg"].rmse < 0.37
-    assert snap["rudder_deg"].within_pct >= 72.0 and snap["rudder_deg"].rmse < 0.82
-    assert flap["roc_fpm"].within_pct == 100.0 and flap["roc_fpm"].rmse < 52.0
+    # measured (20 usable rows): pitch 85 % / 0.91 deg, elevator 90 % / 0.64, aileron 100 % / 0.32,
+    # rudder 80 % / 0.75, flaps-10 climbs 100 % / 49.8 fpm
+    assert snap["pitch_deg"].within_pct >= 85.0 and snap["pitch_deg"].rmse < 0.95
+    assert snap["elevator_deg"].within_pct >= 90.0 and snap["elevator_deg"].rmse < 0.68
+    assert snap["aileron_deg"].within_pct == 100.0 and snap["aileron_deg"].rmse < 0.36
+    assert snap["rudder_deg"].within_pct >= 80.0 and snap["rudder_deg"].rmse < 0.79
+    assert flap["roc_fpm"].within_pct == 100.0 and flap["roc_fpm"].rmse < 53.0

@@ -114,17 +114,24 @@ def step_axis(step_name: str) -> str:
     return step_name.split()[0]
 
 
-def refit_step(steps: Sequence[DynamicStep], fitted: Sequence[FitResult]) -> DynamicStep:
-    """All axes together, their fitted factors from where the axis fits left them: roll and yaw
-    are coupled (a yaw-damping error shows in the roll response), so the axis fits, run one
-    after the other, leave each other's errors in their factors."""
-    names = tuple(dict.fromkeys(n for r in fitted if r.message != "nothing fitted" for n in r.names))
-    return DynamicStep("dynamic refit", tuple(k for s in steps for k in s.kinds),
+COUPLED_AXES = ("roll", "yaw")       # the lateral-directional axes: refitted together
+
+
+def refit_step(steps: Sequence[DynamicStep], fitted: Sequence[FitResult]) -> DynamicStep | None:
+    """The coupled axes together, their fitted factors from where the axis fits left them: a
+    yaw-damping error shows in the roll response and a roll-damping error in the yaw
+    response, so the axis fits, run one after the other, leave each other's errors in their
+    factors. None when fewer than two of them fitted anything (the pitch axis is decoupled)."""
+    steps = [s for s in steps if step_axis(s.name) in COUPLED_AXES]
+    done = [r for r in fitted if step_axis(r.stage) in COUPLED_AXES and r.message != "nothing fitted"]
+    if len(done) < 2:
+        return None
+    names = tuple(dict.fromkeys(n for r in done for n in r.names))
+    return DynamicStep("lateral refit", tuple(k for s in steps for k in s.kinds),
                        tuple(dict.fromkeys(t for s in steps for t in s.trims)),
                        tuple(dict.fromkeys(h for s in steps for h in s.hold if h not in
                                            {t for s2 in steps for t in s2.trims})),
-                       "the axes' fitted factors together on all their tests (the lateral and directional axes are "
-                       "coupled)", names)
+                       "the roll and yaw factors together on all their tests (the two axes are coupled)", names)
 
 
 def _residual_function(sim: Simulator, tests: Sequence, sets, held, step_name: str):
@@ -221,7 +228,7 @@ def dynamic_stage(sim: Simulator, tests: Sequence[DynamicTest | RecordedTest], d
         if after_step:
             after_step(step, out)
     joint = refit_step(steps, results)
-    if len(joint.factors) > 1 and len(results) > 1:
+    if joint is not None:
         out = dynamic_step(sim, joint, tests, data, current, progress=progress)
         if out is not None:
             results.append(out)

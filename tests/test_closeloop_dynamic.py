@@ -1,0 +1,219 @@
+"""Closing the loop on time histories with real JSBSim: a truth aircraft with an undeclared
+yaw-due-to-roll-rate term, the null case, the command line, and NaN never passing.
+
+The truth is a copy of the committed C172 with a hand-written yawing moment in its XML (not
+the effect file); it flies a small plan (an aileron doublet, an aileron step and a rudder
+doublet at cruise, 8 s each, 10 Hz) through ``synth --plan``'s writer (format 1, sensor noise
+on the response channels), and the records are read back as recorded tests.
+"""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import jsbsim
+import numpy as np
+import pytest
+from lxml import etree
+
+from jsbsim_calib.calibration.closeloop import MIN_EVIDENCE, MIN_EXPLAINED, evidence_failures, pays_off_out_of_sample
+from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, acts_on, close_loop_dynamic, check_tests,
+                                                        companion_factors, cross_validate, dynamic_library,
+                                                        effect_axis, noise_in_scales)
+from jsbsim_calib.dynamics import CHANNEL_SCALES, load_recorded_tests
+from jsbsim_calib.errors import InputError
+from jsbsim_calib.jsbsim import xml
+from jsbsim_calib.jsbsim.aircraft import EFFECT_SYSTEM_PREFIX
+from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.jsbsim.simulator import Simulator
+from jsbsim_calib.jsbsim.trajectory import Input, Maneuver, fly
+from jsbsim_calib.synth_maneuvers import NOISE, load_plan, synthesize_maneuvers
+
+REPO = Path(__file__).resolve().parents[1]
+TRUTH_CN_P = -0.05          # yaw due to roll rate the truth has and the model lacks
+CRUISE = Condition(pressure_alt_ft=5500, weight_lb=2400, ktas=110, cg_in=42.0)
+RESPONSE_NOISE = {"p_deg_s": 0.1, "q_deg_s": 0.1, "r_deg_s": 0.1, "roll_deg": 0.05, "pitch_deg": 0.05,
+                  "alpha_deg": 0.2, "beta_deg": 0.2, "kcas": 0.3}
+MANEUVERS = '''
+[[maneuver]]
+id = "L.1"
+kind = "roll_doublet"
+part60 = "2.d.2"
+title = "Aileron doublet (cruise)"
+duration_s = 8.0
+start = { pressure_alt_ft = 5500, ktas = 110, weight_lb = 2400, cg_in = 42.0 }
+inputs = [{ shape = "doublet", channel = "aileron_deg", amplitude = 5.0, start_s = 0.5, length_s = 1.0 }]
+
+[[maneuver]]
+id = "L.2"
+kind = "roll_step"
+part60 = "2.d.2"
+title = "Aileron step (cruise)"
+duration_s = 8.0
+start = { pressure_alt_ft = 5500, ktas = 110, weight_lb = 2400, cg_in = 42.0 }
+inputs = [{ shape = "step", channel = "aileron_deg", amplitude = -5.0, start_s = 0.5, length_s = 3.0 }]
+
+[[maneuver]]
+id = "L.3"
+kind = "yaw_doublet"
+part60 = "2.d.3"
+title = "Rudder doublet (cruise)"
+duration_s = 8.0
+start = { pressure_alt_ft = 5500, ktas = 110, weight_lb = 2400, cg_in = 42.0 }
+inputs = [{ shape = "doublet", channel = "rudder_deg", amplitude = 5.0, start_s = 0.5, length_s = 1.0 }]
+'''
+
+
+def plan_text() -> str:
+    """Sensor noise (no bias) on the response channels only: an open-loop replay starts from
+    the first sample, so noise on an input or on the start condition would offset the whole
+    replay (a drift no effect explains); here the truth's model error stands alone."""
+    noise = "".join(f"[noise.{c}]\nsigma = {RESPONSE_NOISE.get(c, 0.0)}\nbias = 0.0\n" for c in NOISE)
+    return ('[plan]\nname = "lateral"\nsample_rate_hz = 10.0\n[variation]\ntiming_s = 0.1\namplitude_frac = 0.08\n'
+            + noise + MANEUVERS)
+
+
+def add_yaw_function(aircraft_xml: Path, coefficient: float) -> None:
+    """Write N = coefficient (p b/2V) qbar S b into the YAW axis of an aircraft file (by hand,
+    not through the effect library)."""
+    tree = xml.read(aircraft_xml)
+    fn = etree.fromstring(
+        '<function name="aero/moment/n_truth_roll_rate"><description>truth: yaw due to roll rate</description>'
+        '<product><property>aero/qbar-psf</property><property>metrics/Sw-sqft</property>'
+        f'<property>metrics/bw-ft</property><value>{coefficient!r}</value><property>aero/bi2vel</property>'
+        '<property>velocities/p-aero-rad_sec</property></product></function>')
+    tree.getroot().find("aerodynamics/axis[@name='YAW']").append(fn)
+    xml.write(tree, aircraft_xml)
+
+
+def records(tmp: Path, truth_dir: Path, seed: int) -> Path:
+    """The plan flown by the truth aircraft folder, written as format 1 into ``tmp/th``."""
+    (tmp / "plan.toml").write_text(plan_text())
+    with Simulator.from_dir(truth_dir, REPO) as truth:
+        synthesize_maneuvers(truth, load_plan(tmp / "plan.toml"), tmp / "th", seed=seed, noise=1.0)
+    return tmp / "th"
+
+
+@pytest.fixture(scope="module")
+def clean():
+    with Simulator(REPO, "c172") as sim:
+        yield sim
+
+
+@pytest.fixture(scope="module")
+def cn_p_records(tmp_path_factory) -> Path:
+    tmp = tmp_path_factory.mktemp("cn_p")
+    truth = tmp / "truth" / "c172"
+    shutil.copytree(REPO / "aircraft" / "c172", truth)
+    add_yaw_function(truth / "c172.xml", TRUTH_CN_P)
+    return records(tmp, truth, seed=3)
+
+
+def _doublet(channel: str, a: float) -> Input:
+    return Input(channel, (0, .5, .6, 1.5, 1.6, 2.5, 2.6), (0, 0, a, a, -a, -a, 0))
+
+
+# --------------------------------------------------------------------------- the dynamic library
+def test_dynamic_effects_load_fly_and_move_what_they_say(clean):
+    """Each dynamic effect at 3/4 of its range moves a channel it names by more than its scale
+    in a roll or yaw doublet; the rate effects leave a straight trim alone."""
+    lib = dynamic_library()
+    assert {"yaw_due_to_roll_rate", "roll_due_to_yaw_rate", "aileron_adverse_yaw"} <= set(lib)
+    maneuvers = [Maneuver("ail", CRUISE, 6.0, (_doublet("aileron_deg", 5.0),)),
+                 Maneuver("rud", CRUISE, 6.0, (_doublet("rudder_deg", 5.0),))]
+    base = [fly(clean, m) for m in maneuvers]
+    for name, e in lib.items():
+        assert acts_on(e) == ("roll", "yaw") and companion_factors(e), name
+        assert all(f.property.startswith("calibration/effects/") and f.neutral == 0.0 for f in e.factors), name
+        with clean.clone() as trial:
+            trial.add_effect(e, {f.property: f.lower + 0.75 * (f.upper - f.lower) for f in e.factors})
+            moved = max(float(np.max(np.abs(fly(trial, m)[c] - b[c]))) / CHANNEL_SCALES[c]
+                        for m, b in zip(maneuvers, base) for c in e.affects)
+            assert moved > 1.0, (name, moved)
+            if name != "aileron_adverse_yaw":         # zero without rates
+                assert trial.trim(CRUISE).rudder_deg == pytest.approx(clean.trim(CRUISE).rudder_deg, abs=1e-6)
+    assert effect_axis(lib["roll_due_to_yaw_rate"]) == "roll" and effect_axis(lib["yaw_due_to_roll_rate"]) == "yaw"
+
+
+# --------------------------------------------------------------------------- (a) an undeclared yaw term
+def test_a_yaw_due_to_roll_rate_is_found_and_its_coefficient_recovered(clean, cn_p_records):
+    tests = load_recorded_tests(cn_p_records)
+    assert [t.kind for t in tests] == ["roll_doublet", "roll_step", "yaw_doublet"]
+    res = close_loop_dynamic(clean, tests)
+    assert res.added == ["yaw_due_to_roll_rate"], [(c.effect, c.round, c.reason) for c in res.candidates]
+    k = res.factors["yaw_due_to_roll_rate.K"]
+    assert k == pytest.approx(TRUTH_CN_P, rel=0.25)          # measured: -0.0509 (truth -0.05)
+    best = min((c for c in res.candidates if c.round == 1), key=lambda c: c.delta_bic)
+    assert best.effect == "yaw_due_to_roll_rate" and best.accepted
+    assert best.delta_bic <= -MIN_EVIDENCE and best.share >= MIN_EXPLAINED and best.cv[1] < 0.5 * best.cv[0]
+    b, a = res.errors("before")["yaw"]["r_deg_s"], res.errors("after")["yaw"]["r_deg_s"]
+    assert b.max_abs > 2 * CHANNEL_SCALES["r_deg_s"]           # the yaw rate visibly outside its scale
+    assert a.rms < 0.25 * CHANNEL_SCALES["r_deg_s"]            # measured: 1.56 -> 0.14 deg/s RMS
+    assert "yaw" in {d.axis for d in res.diagnosis_before.values() if d.structured}
+    assert not res.unexplained(), [(u.metric, u.reason) for u in res.unexplained()]
+    json.dumps(res.to_json(), allow_nan=False)
+
+
+# --------------------------------------------------------------------------- (b) the null case
+def test_b_a_clean_truth_adds_nothing(clean, tmp_path):
+    tests = load_recorded_tests(records(tmp_path, REPO / "aircraft" / "c172", seed=8))
+    res = close_loop_dynamic(clean, tests)
+    assert res.added == [] and res.candidates == [], [(c.effect, c.reason) for c in res.candidates]
+    assert not any(d.structured for d in res.diagnosis_before.values()), \
+        {c: d.reason for c, d in res.diagnosis_before.items()}
+    # the noise estimate finds the sensor noise of the records (second differences)
+    for c in ("r_deg_s", "beta_deg", "p_deg_s"):
+        assert res.diagnosis_before[c].noise == pytest.approx(RESPONSE_NOISE[c], rel=0.35), c
+
+
+# --------------------------------------------------------------------------- the command line
+def test_cli_writes_the_aircraft_report_and_json(tmp_path, cn_p_records):
+    root = tmp_path / "root"
+    for d in ("aircraft", "engine", "data", "airfoils"):
+        shutil.copytree(REPO / d, root / d)
+    out = tmp_path / "loop.json"
+    cmd = [sys.executable, "-m", "jsbsim_calib.cli", "--root", str(root), "--quiet", "close-loop", "c172",
+           "--flight-test", str(cn_p_records), "--json", str(out), "--report-dir", str(tmp_path / "reports")]
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(out.read_text())
+    assert doc["added"] == ["yaw_due_to_roll_rate"]
+    assert doc["factors"]["yaw_due_to_roll_rate.K"] == pytest.approx(TRUTH_CN_P, rel=0.25)
+    assert doc["before"]["yaw"]["r_deg_s"]["rms"] > doc["after"]["yaw"]["r_deg_s"]["rms"]
+    report = tmp_path / "reports" / "c172" / "close-loop-dynamic.md"
+    assert report.is_file() and list(report.parent.glob("close-loop-dynamic_*_yaw.png"))
+    written = root / "aircraft" / "c172_loop" / "c172_loop.xml"
+    tree = xml.read(written)
+    assert any(s.get("name") == EFFECT_SYSTEM_PREFIX + "yaw_due_to_roll_rate" for s in tree.getroot().findall("system"))
+    jsbsim.FGJSBBase().debug_lvl = 0
+    fdm = jsbsim.FGFDMExec(str(root))
+    fdm.set_debug_level(0)
+    assert fdm.load_model("c172_loop")
+    assert fdm["calibration/effects/Cn_p"] == pytest.approx(doc["factors"]["yaw_due_to_roll_rate.K"], rel=1e-5)
+    both = subprocess.run(cmd[:-4] + ["--data", str(REPO / "data" / "c172_flight_test_snapshots.csv")],
+                          capture_output=True, text=True, timeout=60)
+    assert both.returncode != 0 and "--flight-test" in both.stderr
+
+
+# --------------------------------------------------------------------------- (c) NaN never passes
+def test_c_no_evidence_test_accepts_a_nan(clean, cn_p_records):
+    """The trim loop's evidence rules, as this loop uses them, refuse a NaN in any quantity; a
+    channel without a noise estimate weighs with its scale and is not structured; one maneuver
+    cannot be cross-validated (NaN), and NaN never pays off."""
+    nan = float("nan")
+    passing = dict(delta_bic=-2 * MIN_EVIDENCE, material=1.0, structure=1.0, share=0.9)
+    assert evidence_failures(**passing) == []
+    for key in passing:
+        assert evidence_failures(**{**passing, key: nan}), f"a NaN {key} passed the evidence tests"
+    assert not pays_off_out_of_sample(nan, 0.5) and not pays_off_out_of_sample(1.0, nan)
+    d = ChannelDiagnosis("r_deg_s", "yaw", 5, nan, 2.0, nan, nan, nan, nan, False, "too few samples")
+    assert noise_in_scales(d) == 1.0
+    tests = load_recorded_tests(cn_p_records)
+    cv = cross_validate(clean, dynamic_library()["yaw_due_to_roll_rate"], clean.factors, tests[:1])
+    assert math.isnan(cv) and not pays_off_out_of_sample(100.0, cv)
+    with pytest.raises(InputError, match="more than once"):
+        check_tests([tests[0], tests[0]])
