@@ -26,6 +26,12 @@ from .jsbsim.trajectory import RATE_HZ, Trajectory, fly
 
 
 # --------------------------------------------------------------------------- measurements
+def _mean(x) -> float:
+    """Correctly rounded mean (numpy's SIMD reductions may sum in a CPU's order: the fits
+    read these numbers, and must give the same bits on every CPU)."""
+    return math.fsum(np.asarray(x, float).tolist()) / len(x)
+
+
 def peak_rate(t: np.ndarray, rate: np.ndarray, start_s: float, sign: float) -> float:
     """Largest change of a body rate from its value at ``start_s``, in the direction ``sign``
     (the signed peak: a response the wrong way is negative)."""
@@ -37,7 +43,7 @@ def peak_rate(t: np.ndarray, rate: np.ndarray, start_s: float, sign: float) -> f
 def steady_roll_rate(t: np.ndarray, p: np.ndarray, step_s: float, window=ROLL_WINDOW_S) -> float:
     """Mean roll rate between ``window`` seconds after the step."""
     m = (t >= step_s + window[0]) & (t <= step_s + window[1])
-    return float(np.mean(p[m])) if m.any() else math.nan
+    return _mean(p[m]) if m.any() else math.nan
 
 
 def phugoid(t: np.ndarray, speed: np.ndarray, release_s: float) -> tuple[float, float]:
@@ -48,13 +54,13 @@ def phugoid(t: np.ndarray, speed: np.ndarray, release_s: float) -> tuple[float, 
     ts, v = t[m], speed[m]
     if ts.size < 10:
         return math.nan, math.nan
-    dv = v - np.mean(v)
+    dv = v - _mean(v)
     up = np.flatnonzero((dv[:-1] < 0) & (dv[1:] >= 0))
     if up.size < 3:
         return math.nan, math.nan
     # crossing times by linear interpolation between frames
     tc = ts[up] + (ts[up + 1] - ts[up]) * (-dv[up]) / (dv[up + 1] - dv[up])
-    period = float(np.mean(np.diff(tc[:3])))
+    period = _mean(np.diff(tc[:3]))
     peaks = [float(np.max(np.abs(dv[a:b]))) for a, b in zip(up[:-1], up[1:])]
     if len(peaks) < 2 or peaks[1] <= 0:
         return period, math.nan

@@ -104,8 +104,8 @@ def identified_by(jac: np.ndarray, kind_of_row: np.ndarray, names: Sequence[str]
     keep, drop = [], []
     for j, n in enumerate(names):
         col = jac[:, j] ** 2
-        total = float(np.sum(col[kind_of_row != "held"]))
-        free = float(np.sum(col[kind_of_row == "free"]))
+        total = math.fsum(col[kind_of_row != "held"].tolist())
+        free = math.fsum(col[kind_of_row == "free"].tolist())
         (keep if total > 0 and free >= IDENTIFIED_SHARE * total else drop).append(n)
     return keep, drop
 
