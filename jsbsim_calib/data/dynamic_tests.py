@@ -174,16 +174,23 @@ def _maneuver(kind: str, test_id: str, start: Condition, surface: str, measured:
         f"1 s pulse of {what}: the amplitude was not recorded (assumed)",)
 
 
+def read_results(results: str | Path, snapshots: str | Path) -> tuple[pd.DataFrame, dict[str, pd.Series]]:
+    """A results file (its columns checked) and the snapshot rows by table id (C.1, ...)."""
+    res = read_csv_checked(Path(results)).rename(columns=lambda c: c.strip())
+    missing = [c for c in RESULT_COLUMNS if c not in res]
+    if missing:
+        raise DataError(results, [Problem(f"column '{c}'", "missing") for c in missing])
+    snap = read_csv_checked(Path(snapshots)).rename(columns=lambda c: c.strip())
+    if "table" not in snap:
+        raise DataError(snapshots, [Problem("column 'table'", "missing")])
+    return res, {str(r["table"]).strip(): r for _, r in snap.iterrows()}
+
+
 def load_dynamic_tests(results: str | Path, snapshots: str | Path, travel: dict[str, ControlAxis]) -> list[DynamicTest]:
     """The dynamic tests of a flight-test results file whose initial conditions the snapshot
     file holds. Rows of other kinds (climbs, trims, engine) are not dynamic tests here."""
     results, snapshots = Path(results), Path(snapshots)
-    res = read_csv_checked(results).rename(columns=lambda c: c.strip())
-    missing = [c for c in RESULT_COLUMNS if c not in res]
-    if missing:
-        raise DataError(results, [Problem(f"column '{c}'", "missing") for c in missing])
-    snap = read_csv_checked(snapshots).rename(columns=lambda c: c.strip())
-    snap_rows = {str(r["table"]).strip(): r for _, r in snap.iterrows()}
+    res, snap_rows = read_results(results, snapshots)
     problems: list[Problem] = []
     grouped: dict[str, list] = {}
     for i, r in res.iterrows():

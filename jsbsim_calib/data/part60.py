@@ -36,6 +36,7 @@ import pandas as pd
 from ..errors import DataError, Problem
 from ..jsbsim.condition import Condition
 from ..jsbsim.trajectory import Input, Maneuver
+from .dynamic_tests import RESULT_COLUMNS, read_results
 from .schemas import read_csv_checked
 
 PASS, FAIL, NA = "PASS", "FAIL", "n/a"
@@ -352,7 +353,6 @@ def combine(verdicts: list[str]) -> str:
 
 
 # --------------------------------------------------------------------------- the results file
-RESULT_COLUMNS = ("table", "title", "metric", "tolerance", "flight_test")
 STATIC_METRICS = {       # results-file metric text -> metric key
     "Airspeed (KTAS)": "ktas", "Vertical Speed (FPM)": "vs_fpm", "Elevator Angle": "elevator_deg",
     "Pitch": "pitch_deg", "Percent Power": "pct_power", "RPM": "rpm", "T_i": "t_i_s", "T_t": "t_t_s",
@@ -477,13 +477,7 @@ def _static_case(tid: str, rows: list[pd.Series], snaps: dict[str, pd.Series]) -
 def load_static_cases(results: str | Path, snapshots: str | Path) -> list[StaticCase]:
     """The static objective tests of a results file (climbs, trims, engine), with their
     initial conditions from the snapshot file. Dynamic rows are :mod:`.dynamic_tests`'."""
-    results, snapshots = Path(results), Path(snapshots)
-    res = read_csv_checked(results).rename(columns=lambda c: c.strip())
-    missing = [c for c in RESULT_COLUMNS if c not in res]
-    if missing:
-        raise DataError(results, [Problem(f"column '{c}'", "missing") for c in missing])
-    snap = read_csv_checked(snapshots).rename(columns=lambda c: c.strip())
-    snaps = {str(r["table"]).strip(): r for _, r in snap.iterrows()} if "table" in snap else {}
+    res, snaps = read_results(results, snapshots)
     grouped: dict[str, list[pd.Series]] = {}
     for _, r in res.iterrows():
         if str(r["metric"]).strip() in STATIC_METRICS:
