@@ -7,6 +7,7 @@ reports, print).
     jsbsim-calib synth --truth AIRCRAFT_DIR --out FILE.csv [--seed N] [--points N] [--noise X]
     jsbsim-calib synth --truth AIRCRAFT_DIR --plan PLAN --out DIR [--seed N] [--noise X]
     jsbsim-calib close-loop AIRCRAFT --data FILE [--json OUT] [--skip STEP] [--out NAME]
+    jsbsim-calib close-loop AIRCRAFT --flight-test DIR_OR_FILE... [--json OUT] [--out NAME]
     jsbsim-calib check AIRCRAFT [--json OUT]
     jsbsim-calib airfoil NAME
 """
@@ -197,7 +198,29 @@ def _synth_plan(a) -> int:
     return 0
 
 
+def _close_loop_dynamic(a) -> int:
+    from .calibration.closeloop_dynamic import run_close_loop_dynamic, write_aircraft as write_loop_aircraft
+    from .report.closeloop_dynamic import format_result, write_close_loop_dynamic_report
+    if a.skip:
+        raise CalibError("close-loop --flight-test: --skip reruns stage 2a for trim data, not for time histories")
+    root = Path(a.root)
+    res = run_close_loop_dynamic(root, a.aircraft, a.flight_test, progress=_progress(a.quiet))
+    print(format_result(res))
+    written = None
+    if not a.no_write:
+        written = write_loop_aircraft(res, root, a.aircraft if a.in_place else (a.out or f"{a.aircraft}_loop"))
+        print(f"aircraft: {written}")
+    command = f"jsbsim-calib close-loop {a.aircraft} --flight-test {' '.join(Path(f).name for f in a.flight_test)}"
+    print(f"report: {write_close_loop_dynamic_report(res, Path(a.report_dir) / a.aircraft, written, command)}")
+    if a.json:
+        Path(a.json).write_text(json.dumps(res.to_json(), indent=2, default=float) + "\n")
+        print(f"json: {a.json}")
+    return 0
+
+
 def cmd_close_loop(a) -> int:
+    if a.flight_test:
+        return _close_loop_dynamic(a)
     root = Path(a.root)
     res = run_close_loop(root, a.aircraft, Path(a.data), skip_steps=tuple(a.skip or ()),
                          progress=_progress(a.quiet))
@@ -207,6 +230,10 @@ def cmd_close_loop(a) -> int:
     print("after:")
     print(format_summary(s.after))
     print(f"added: {', '.join(res.added) or 'nothing'}")
+    for rec in res.synthesized:                # terms synthesized beyond the library (calibration.synthesis)
+        terms = "; ".join(f"{t['coefficient']} ~ {t['regressor']} = {t['final' if rec.accepted else 'fitted']:.4g} "
+                          f"({t['interpretation']})" for t in rec.terms) or "no term selected"
+        print(f"synthesized, round {rec.round}: {terms}: {'added' if rec.accepted else 'rejected: ' + rec.reason}")
     for u in res.unexplained():
         print(f"unexplained: {u.metric} correlates with {', '.join(u.correlates_with[:3]) or 'no single state'}")
     written = None
@@ -232,6 +259,22 @@ def cmd_check(a) -> int:
 
 def cmd_airfoil(a) -> int:
     print(regenerate(a.name, Path(a.out)))
+    return 0
+
+
+def cmd_part60(a) -> int:
+    from .part60 import evaluate_part60, load_part60_inputs
+    from .report.part60 import format_part60_table, write_part60_report
+    with Simulator(Path(a.root), a.aircraft) as sim:
+        inputs = load_part60_inputs(a.flight_test, sim.geometry.control_travel_file)
+        ev = evaluate_part60(sim, summary=inputs.summary, time_histories=inputs.time_histories,
+                             ignored=inputs.ignored, progress=_progress(a.quiet))
+    command = f"jsbsim-calib part60 {a.aircraft} --flight-test {' '.join(map(str, a.flight_test))}"
+    files = write_part60_report(ev, Path(a.report_dir) / a.aircraft / "part60", command)
+    print(format_part60_table(ev))
+    for note in ev.ignored:
+        print(f"not used: {note}")
+    print(f"report: {files.markdown}\nhtml: {files.html} (self-contained)")
     return 0
 
 
@@ -282,7 +325,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     o = sub.add_parser("close-loop", help="find structured residuals, add the missing effect, refit, report")
     o.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
-    o.add_argument("--data", required=True, help="flight-test snapshots, flap climbs or POH data")
+    source = o.add_mutually_exclusive_group(required=True)
+    source.add_argument("--data", help="flight-test snapshots, flap climbs or POH data")
+    source.add_argument("--flight-test", nargs="+", metavar="DIR_OR_FILE",
+                        help="time histories (format 1: folders and/or CSV files with JSON sidecars): close the loop "
+                             "on recorded maneuvers")
     o.add_argument("--json", help="write the result as JSON to this file")
     o.add_argument("--skip", action="append", metavar="STEP",
                    help="first rerun stage 2a without this step (e.g. pfactor); repeatable")
@@ -302,6 +349,15 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("name", help="stored polar name, e.g. naca2412-tr05 (airfoils/NAME.csv)")
     f.add_argument("--out", default="airfoils", help="folder to write the polar to (default airfoils/)")
     f.set_defaults(func=cmd_airfoil)
+
+    q = sub.add_parser("part60", help="FAA Part 60 Level 5 objective tests against flight-test summaries and/or "
+                                      "time histories: report (Markdown + self-contained HTML) and verdicts")
+    q.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    q.add_argument("--flight-test", required=True, nargs="+", metavar="DIR_OR_FILE",
+                   help="flight-test files or folders: results + snapshots (+ control travel) CSV files and/or "
+                        "time histories (CSV + JSON sidecar)")
+    q.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/part60/)")
+    q.set_defaults(func=cmd_part60)
     return p
 
 

@@ -166,12 +166,14 @@ def test_null_truth_adds_nothing_and_the_cli_writes_json_and_a_loadable_aircraft
 
 
 def test_an_effect_outside_the_library_is_reported_not_attributed(tmp_path, clean):
-    """A rolling moment growing with flap deflection (an asymmetric flap rigging)."""
+    """A rolling moment growing with flap deflection (an asymmetric flap rigging): no library
+    effect is attributed (the library alone, ``synthesize=False``; with synthesis the loop builds
+    the term: tests/test_synthesis.py)."""
     roll = ("<function name='aero/outside/flap-roll'><product><value>0.0004</value><property>aero/qbar-psf</property>"
             "<property>metrics/Sw-sqft</property><property>metrics/bw-ft</property><property>fcs/flap-pos-deg</property>"
             "</product></function>")
     ds = snapshots(tmp_path, make_truth(tmp_path, {}, roll), 14)
-    res = close_loop(clean, ds)
+    res = close_loop(clean, ds, synthesize=False)
     assert res.added == [], [(c.effect, c.share, c.reason) for c in res.candidates if c.round == 1]
     un = {u.metric: u.correlates_with for u in res.unexplained()}
     assert "aileron_deg" in un and "flaps" in un["aileron_deg"][:3], un

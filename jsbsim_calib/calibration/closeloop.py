@@ -22,7 +22,14 @@ climbs, POH climb/cruise):
    attributed; then refit the added effects' factors together with the stage-2a factors
    acting on the same metrics (:func:`companion_factors`: fitted without the effect, they may
    have stood in for it);
-5. repeat until no candidate passes; diagnose again: what is still structured is reported
+5. when no library effect passes and structure remains, synthesize the missing term
+   (:mod:`.synthesis`, section "synthesis" below): candidate terms of the structured
+   metrics' axes, linearized by JSBSim, the sparsest set selected, written as an effect, fitted
+   with the fit engine and judged by the same rules, plus a null test of the selection
+   (shuffled residuals) and a cross-validation that repeats the selection in every fold; a
+   library effect that explains the data always wins (it is tried first, every round); an
+   added term holds the levers of its metrics (:func:`_synthesized_effect`);
+6. repeat until no candidate passes; diagnose again: what is still structured is reported
    as unexplained, with the states it correlates with, not attributed.
 """
 from __future__ import annotations
@@ -42,10 +49,12 @@ from ..factors import FactorSet, levers
 from ..jsbsim.product import AircraftPaths, write_derived
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.xml import Tree
-from .diagnose import Correlate, MetricDiagnosis, diagnose
+from .diagnose import ALPHA, Correlate, MetricDiagnosis, diagnose
 from .effects import Effect, library
 from .fit import FitResult, fit
 from .points import FAIL_PENALTY
+from .synthesis import Linearization, Selection, Synthesis, dictionary_for, linearize, null_test, select, term_effect
+from .terms import axes_for
 
 HOLDOUT = 4              # every 4th point is held out
 MIN_EVIDENCE = 10.0      # BIC decrease for "very strong" evidence (Kass & Raftery)
@@ -132,6 +141,7 @@ class CloseLoopResult:
     aircraft_tree: Tree
     wall_time_s: float
     notes: list[str] = field(default_factory=list)
+    synthesized: list[Synthesis] = field(default_factory=list)   # every synthesis attempt (accepted or not)
 
     def summaries(self, which: str) -> BeforeAfter:
         """Summaries (schema of ``evaluate``) of 'all', 'fit' or 'held' points, before and after."""
@@ -159,7 +169,7 @@ class CloseLoopResult:
                 "diagnosis_before": {m: d.as_dict() for m, d in self.diagnosis_before.items()},
                 "diagnosis_after": {m: d.as_dict() for m, d in self.diagnosis_after.items()},
                 "factors": {n: self.factors[n] for n in self.factors.extra},
-                "notes": self.notes}
+                "notes": self.notes, "synthesized": [s.as_dict() for s in self.synthesized]}
 
 
 # --------------------------------------------------------------------------- residuals
@@ -397,13 +407,15 @@ def _refit(rnd: int, current: Simulator, lib: dict[str, Effect], added: list[str
 
 
 def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None = None,
-               max_effects: int = MAX_EFFECTS, refit_companions: bool = True,
+               max_effects: int = MAX_EFFECTS, refit_companions: bool = True, synthesize: bool = True,
                progress: Callable[[str], None] | None = None) -> CloseLoopResult:
     """Close the loop on one dataset (see the module doc). ``sim`` is left unchanged; the
-    result holds the aircraft with the added effects (its file and factors)."""
+    result holds the aircraft with the added effects (its file and factors). ``synthesize``:
+    synthesize a term when no library effect passes (step 5)."""
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
-    lib = library() if effects is None else effects
+    lib = dict(library() if effects is None else effects)      # synthesized effects join it when added
+    syntheses: list[Synthesis] = []
     conds = KINDS[ds.kind].conditions(ds, sim.geometry)
     n = len(ds)
     held = [i for i in range(n) if i % HOLDOUT == HOLDOUT - 1]
@@ -427,6 +439,9 @@ def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None
             tried = _candidates(start, current, lib, factors, ds, conds, fitp, held, say)
             candidates += tried
             best = _best_out_of_sample(tried, current, lib, factors, ds, conds, say)
+            if best is None and synthesize:
+                best = _synthesis_round(start, current, lib, factors, ds, conds, fitp, held, syntheses, candidates,
+                                        say)
             if best is None:
                 break
             best.accepted = True
@@ -445,8 +460,9 @@ def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None
         after = evaluate_dataset(current, ds)
         tree = current.aircraft_tree()
     diag1 = diagnose(after)
+    _final_values(syntheses, factors)
     return CloseLoopResult(sim.name, sim.root, ds, fitp, held, before, after, diag0, diag1, candidates, added,
-                           refits, factors, tree, time.perf_counter() - t0)
+                           refits, factors, tree, time.perf_counter() - t0, synthesized=syntheses)
 
 
 def write_aircraft(result: CloseLoopResult, root: Path, out_name: str) -> Path:
@@ -454,3 +470,132 @@ def write_aircraft(result: CloseLoopResult, root: Path, out_name: str) -> Path:
     parent's folder copied, its XML replaced), loadable by JSBSim and by this workbench."""
     return write_derived(AircraftPaths(result.root, result.aircraft), result.aircraft_tree, result.factors,
                          AircraftPaths(Path(root), out_name))
+
+
+# --------------------------------------------------------------------------- synthesis (beyond the library)
+# When no library effect passes and structure remains, the missing term is synthesized
+# (jsbsim_calib.calibration.synthesis) and judged by the rules above, plus a null test of the
+# selection and a cross-validation that repeats the selection in every fold.
+def _linearized(start: _Round, current: Simulator, ds: Dataset, conds) -> tuple[tuple[str, ...], Linearization | None]:
+    """The structured metrics of the round and the linearized residual of all points to the
+    terms of their axes (None: no candidate term)."""
+    metrics = tuple(m for m, v in start.structure.items() if v > 0)
+    terms = dictionary_for(metrics, exclude=current.effect_values)
+    if not terms:
+        return metrics, None
+    weight = {m: 1.0 / noise_in_tolerances(d) for m, d in start.diagnosis.items()}
+    everything = list(range(len(ds)))
+    return metrics, linearize(current, terms, lambda s: _residuals(s, ds, conds, everything)[:2], weight)
+
+
+def _synthesized_effect(sel: Selection, lin: Linearization, ds: Dataset) -> Effect:
+    """The selection as an effect. The levers of the metrics it moves are held with it (its
+    ``same_as``), not refitted: the dictionary has their forms (a constant, the surface), so
+    whatever a lever could still take was a candidate of the selection already."""
+    moved = lin.moved(sel.terms, sel.coefficients)
+    held = [f for m in moved for f in levers(m, COMPANION_STEPS)]
+    return term_effect(sel.terms, sel.coefficients, source=f"{ds.path.name} ({len(lin.groups)} fitted points)",
+                       affects=moved, held=held)
+
+
+def cross_validate_synthesis(current: Simulator, lin: Linearization, factors: FactorSet, ds: Dataset, conds,
+                             folds: int = HOLDOUT) -> float:
+    """K-fold cross-validation of the whole synthesis: in every fold the terms are selected
+    and fitted on the other points, and the fold's points predicted (residual sum of squares)."""
+    n, total = len(ds), 0.0
+    for f in range(folds):
+        test = [i for i in range(n) if i % folds == f]
+        train = [i for i in range(n) if i % folds != f]
+        part = lin.subset(train)
+        sel = select(part)
+        if not sel.terms:
+            total += _rss(_residuals(current, ds, conds, test)[0])
+            continue
+        trial, _ = _fit(current, _synthesized_effect(sel, part, ds), factors, ds, conds, train)
+        with trial:
+            total += _rss(_residuals(trial, ds, conds, test)[0])
+    return total
+
+
+def _judge(rec: Synthesis, cand: Candidate, current: Simulator, lin: Linearization, factors: FactorSet,
+           ds: Dataset, conds) -> None:
+    """The library's evidence rules, the null test of the selection, cross-validation."""
+    why = [cand.reason] if cand.reason else []
+    if not rec.p_null <= ALPHA:
+        why.append(f"the dictionary explains as much of shuffled residuals (null test p = {rec.p_null:.3f}, "
+                   f"needs <= {ALPHA:g})")
+    if not why:
+        cv0 = _rss(_residuals(current, ds, conds, list(range(len(ds))))[0])
+        cv1 = cross_validate_synthesis(current, lin, factors, ds, conds)
+        rec.cv = cand.cv = (cv0, cv1)
+        if not pays_off_out_of_sample(cv0, cv1):
+            why.append(f"does not pay off out of sample: cross-validated residuals {cv0:.3g} -> {cv1:.3g} "
+                       f"(needs -{100 * MIN_HELD_GAIN:.0f} %)")
+    rec.accepted = not why
+    cand.reason = "; ".join(why)
+    rec.reason = cand.reason or "passes the evidence rules, the null test and cross-validation"
+
+
+def _term_records(sel: Selection, eff: Effect, fr: FitResult) -> list[dict]:
+    out = []
+    for t, k, f in zip(sel.terms, sel.coefficients, eff.factors):
+        label = eff.label(f)
+        out.append({**t.as_dict(), "estimate": k, "fitted": fr.final[label], "stderr": fr.stderr.get(label),
+                    "bounds": [f.lower, f.upper], "final": None})
+    return out
+
+
+def synthesize_term(start: _Round, current: Simulator, factors: FactorSet, ds: Dataset, conds, fitp, held,
+                    say) -> tuple[Synthesis, Candidate | None, Effect | None]:
+    """One synthesis (module doc, step 5): the record, the fitted candidate and its effect."""
+    metrics, lin = _linearized(start, current, ds, conds)
+    rec = Synthesis(start.number, metrics, axes_for(metrics), len(lin.terms) if lin else 0)
+    if lin is None:
+        rec.reason = "no candidate term for the structured metrics " + ", ".join(metrics)
+        return rec, None, None
+    rec.notes += list(lin.notes)
+    part = lin.subset(fitp)
+    rec.selection = sel = select(part)
+    say(f"round {start.number}: synthesis on {', '.join(metrics)}: {rec.candidates} terms of "
+        f"{', '.join(rec.axes)}; selected {', '.join(t.label for t in sel.terms) or 'nothing'}")
+    if not sel.terms:
+        rec.reason = "no set of terms lowers the extended BIC of the linearized residual"
+        return rec, None, None
+    eff = _synthesized_effect(sel, part, ds)
+    rec.effect = eff.name
+    try:
+        trial, fr = _fit(current, eff, factors, ds, conds, fitp)
+    except Exception as exc:                           # a term that breaks the trims is rejected
+        rec.reason = f"fit failed ({exc})"
+        return rec, None, None
+    with trial:
+        cand = _score(start, eff.name, eff, fr, trial, ds, conds, fitp, held)
+    rec.terms = _term_records(sel, eff, fr)
+    rec.p_null = null_test(part, sel)
+    _judge(rec, cand, current, lin, factors, ds, conds)
+    say(f"round {start.number}: {eff.name:34s} BIC {cand.delta_bic:+9.1f}  explains {100 * cand.share:5.0f} %  "
+        f"null p {rec.p_null:.3f}  {'passes' if rec.accepted else 'rejected: ' + rec.reason}")
+    return rec, cand, eff
+
+
+def _synthesis_round(start: _Round, current: Simulator, lib: dict[str, Effect], factors: FactorSet, ds: Dataset,
+                     conds, fitp, held, syntheses: list[Synthesis], candidates: list[Candidate],
+                     say) -> Candidate | None:
+    """Synthesize a term for what the library left structured; when it passes, its effect joins
+    ``lib`` and its candidate is returned (added like a library effect)."""
+    rec, cand, eff = synthesize_term(start, current, factors, ds, conds, fitp, held, say)
+    syntheses.append(rec)
+    if cand is not None:
+        candidates.append(cand)
+    if not rec.accepted:
+        return None
+    lib[eff.name] = eff
+    return cand
+
+
+def _final_values(syntheses: list[Synthesis], factors: FactorSet) -> None:
+    """Each added term's value after the last refit."""
+    for rec in syntheses:
+        for t in rec.terms if rec.accepted else ():
+            label = f"{rec.effect}.{t['term']}"
+            t["final"] = factors[label] if label in factors.extra else None

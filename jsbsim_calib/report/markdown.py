@@ -13,6 +13,7 @@ from ..calibration.diagnose import REGRESSORS
 from ..factors import REGISTRY
 from ..workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
 from . import plots
+from .synthesis import synthesis_section
 from .text import format_summary
 
 JSBSIM_VERSION = version("jsbsim")
@@ -264,6 +265,7 @@ def write_close_loop_report(result, out_dir: Path, written: Path | None = None) 
                  f"{c.rss_held[0]:.3g} -> {c.rss_held[1]:.3g} | {cv} | {fac} | "
                  f"{'**added**' if c.accepted else c.reason} |")
     L += [""]
+    L += synthesis_section(result)
     if result.refits:
         L += ["## Refits after each added effect", "", "```"] + [r.report() + "\n" for r in result.refits] + ["```", ""]
     L += ["## Error before and after", ""]
