@@ -23,6 +23,7 @@ from pathlib import Path
 from .calibration.closeloop import write_aircraft
 from .calibration.steady import steady_factors
 from .errors import CalibError
+from .executor import make_executor
 from .evaluate import evaluate_dataset
 from .generate import generate
 from .jsbsim.probes import report
@@ -58,7 +59,7 @@ def cmd_generate(a) -> int:
 
 def _calibrate_steady(a, root: Path, say):
     start = read_calibration(AircraftPaths(root, a.aircraft)) if a.start == "current" else None
-    res = run_steady(root, a.aircraft, start=start, progress=say)
+    res = run_steady(root, a.aircraft, start=start, progress=say, executor=a.pool)
     print(res.fit.report())
     print(res.fuel_flow.report())
     for kind in res.calibrated:
@@ -79,7 +80,7 @@ def _calibrate_steady(a, root: Path, say):
 
 def _calibrate_trims(a, root: Path, say, start=None):
     res = run_trims(root, a.aircraft, skip=tuple(a.skip or ()), progress=say,
-                    start=None if start is None else steady_factors(start))
+                    start=None if start is None else steady_factors(start), executor=a.pool)
     for r in res.steps:
         print(r.report())
     last = list(res.evaluations)[-1]
@@ -102,7 +103,7 @@ def _calibrate_trims(a, root: Path, say, start=None):
 
 
 def _calibrate_dynamic(a, root: Path, say, start=None):
-    res = run_dynamic(root, a.aircraft, start=start, progress=say)
+    res = run_dynamic(root, a.aircraft, start=start, progress=say, executor=a.pool)
     for r in res.steps:
         print(r.report())
     print("\ndynamic tests (before -> after stage 2b):")
@@ -282,6 +283,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="jsbsim-calib", description="Build and calibrate general-aviation JSBSim aircraft.")
     p.add_argument("--root", default=".", help="JSBSim root (holds aircraft/, engine/, data/); default: current dir")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--executor", choices=("serial", "process", "dask"), default="process",
+                   help="where independent work runs (a fit's Jacobian columns ...): process pool (default), this "
+                        "process, or a dask.distributed cluster; the results are the same bits on each")
+    p.add_argument("--workers", type=int, metavar="N",
+                   help="worker processes (process pool, local dask cluster); default: one per core")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="dask scheduler address (tcp://host:8786) for --executor dask; default: a local cluster")
     sub = p.add_subparsers(dest="command", required=True)
 
     g = sub.add_parser("generate", help="regenerate an aircraft's JSBSim files from aircraft/NAME/geometry.toml")
@@ -369,7 +377,10 @@ def main(argv=None) -> int:
     warnings.showwarning = _show_warning
     args = build_parser().parse_args(argv)
     try:
-        return args.func(args)
+        if args.workers is not None and args.workers < 1:
+            raise CalibError(f"--workers {args.workers}: give at least 1")
+        with make_executor(args.executor, args.workers, args.scheduler) as args.pool:
+            return args.func(args)
     except CalibError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

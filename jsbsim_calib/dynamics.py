@@ -21,6 +21,7 @@ from .data.flighttest import ControlAxis
 from .data.timehistory import TimeHistory, load_time_histories, maneuver_from_time_history
 from .errors import CalibError
 from .evaluate import MetricSummary, Summary
+from .executor import SERIAL, Executor
 from .jsbsim.simulator import Simulator
 from .jsbsim.trajectory import RATE_HZ, Trajectory, fly
 
@@ -242,16 +243,27 @@ def fly_test(sim: Simulator, test: DynamicTest, *, rate_hz: float = RATE_HZ) -> 
     return TestResult(test, tr, [MetricResult(test.id, m, got.get(m.name, math.nan)) for m in test.metrics])
 
 
+class _FlyFresh:
+    """One test flown from a freshly loaded aircraft (no warm starts): the same bits in this
+    process or in an executor's worker."""
+
+    def __init__(self, sim: Simulator, rate_hz: float):
+        self.sim, self.rate_hz = sim, rate_hz
+
+    def __call__(self, test: DynamicTest) -> TestResult:
+        self.sim.fresh()
+        self.sim.trim_cache = {}
+        return fly_test(self.sim, test, rate_hz=self.rate_hz)
+
+
 def evaluate_dynamic(sim: Simulator, tests: Sequence[DynamicTest], *, rate_hz: float = RATE_HZ,
-                     progress: Callable[[str], None] | None = None) -> DynamicEvaluation:
-    """Fly every test on ``sim`` (at its current factors) and compare."""
+                     progress: Callable[[str], None] | None = None, executor: Executor = SERIAL) -> DynamicEvaluation:
+    """Fly every test on ``sim`` (at its current factors) and compare; the tests are
+    independent work (``executor``)."""
     t0 = time.perf_counter()
-    out, frames = [], 0
-    for test in tests:
-        if progress:
-            progress(f"flying {test.id} {test.kind}")
-        r = fly_test(sim, test, rate_hz=rate_hz)
-        frames += 0 if r.trajectory is None else len(r.trajectory.time_s)
-        out.append(r)
+    if progress:
+        progress(f"flying {len(tests)} dynamic tests ({executor.describe()})")
+    out = executor.map(_FlyFresh(sim, rate_hz), list(tests), key=f"fly {id(sim)} {sim.factors!r}")
+    frames = sum(0 if r.trajectory is None else len(r.trajectory.time_s) for r in out)
     return DynamicEvaluation(sim.name, out, time.perf_counter() - t0, frames)
 

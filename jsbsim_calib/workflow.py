@@ -29,6 +29,7 @@ from .data.load import load_dataset
 from .data.schemas import Dataset
 from .dynamics import DynamicEvaluation, evaluate_dynamic
 from .errors import ModelError
+from .executor import SERIAL, Executor
 from .evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
 from .factors import FactorSet
 from .jsbsim.probes import AeroCurves, aero_curves
@@ -86,8 +87,9 @@ def model_curves(root: Path, name: str, factors: FactorSet) -> tuple[dict[str, A
 
 
 def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
-               progress: Callable[[str], None] | None = None) -> SteadyCalibration:
-    """Stage 1 on the aircraft's POH data, with baseline and calibrated evaluations."""
+               progress: Callable[[str], None] | None = None, executor: Executor = SERIAL) -> SteadyCalibration:
+    """Stage 1 on the aircraft's POH data, with baseline and calibrated evaluations
+    (``executor``: where the fits' independent evaluations run; the same results anywhere)."""
     root = Path(root)
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
@@ -97,7 +99,8 @@ def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
         say(f"baseline: trimming {len(climb) + len(cruise)} POH points")
         baseline = {k: evaluate_dataset(sim, ds, model_kind="baseline") for k, ds in data.items()}
         ci, ki = stage1_subset(climb), stage1_subset(cruise)
-        fit, ff = steady_stage(sim, climb, cruise, start=start, climb_points=ci, cruise_points=ki, progress=say)
+        fit, ff = steady_stage(sim, climb, cruise, start=start, climb_points=ci, cruise_points=ki, progress=say,
+                               executor=executor)
         sim.set_factors(ff.final)
         say(f"calibrated: trimming {len(climb) + len(cruise)} POH points")
         calibrated = {k: evaluate_dataset(sim, ds) for k, ds in data.items()}
@@ -150,7 +153,8 @@ class TrimsCalibration:
 
 
 def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps: tuple[TrimStep, ...] = TRIM_STEPS,
-              start: FactorSet | None = None, progress: Callable[[str], None] | None = None) -> TrimsCalibration:
+              start: FactorSet | None = None, progress: Callable[[str], None] | None = None,
+              executor: Executor = SERIAL) -> TrimsCalibration:
     """Stage 2a on the aircraft's flight-test trims, from its stage-1 factors.
 
     ``skip``: names of steps left out (e.g. ``("pfactor",)``); ``start``: factors to start
@@ -183,7 +187,7 @@ def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps:
         poh_before = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
         run = tuple(st for st in steps if st.name not in skip)
         results = trims_stage(sim, {**ft, **poh}, start=start, steps=run, progress=say,
-                              after_step=lambda st, res: evaluate(st.name))
+                              after_step=lambda st, res: evaluate(st.name), executor=executor)
         final = results[-1].final if results else start
         sim.set_factors(final)
         say(f"stage 2a model: trimming {sum(len(d) for d in poh.values())} POH points")
@@ -239,7 +243,7 @@ def dynamic_tests(root: Path, name: str) -> list[DynamicTest]:
 
 def run_dynamic(root: Path | str, name: str, *, start: FactorSet | None = None,
                 steps: tuple[DynamicStep, ...] = DYNAMIC_STEPS,
-                progress: Callable[[str], None] | None = None) -> DynamicCalibration:
+                progress: Callable[[str], None] | None = None, executor: Executor = SERIAL) -> DynamicCalibration:
     """Stage 2b on the aircraft's dynamic tests, from its current factors (stage 2a's)."""
     root = Path(root)
     t0 = time.perf_counter()
@@ -253,12 +257,13 @@ def run_dynamic(root: Path | str, name: str, *, start: FactorSet | None = None,
         start = sim.factors if start is None else start
         sim.set_factors(start)
         say(f"flying {len(tests)} dynamic tests")
-        before = evaluate_dynamic(sim, tests)
+        before = evaluate_dynamic(sim, tests, executor=executor)
         trims_before = {k: evaluate_dataset(sim, ds) for k, ds in ft.items()}
-        results = dynamic_stage(sim, tests, {**ft, **poh}, start=start, steps=steps, progress=say)
+        results = dynamic_stage(sim, tests, {**ft, **poh}, start=start, steps=steps, progress=say,
+                                executor=executor)
         final = results[-1].final if results else start
         sim.set_factors(final)
-        after = evaluate_dynamic(sim, tests)
+        after = evaluate_dynamic(sim, tests, executor=executor)
         trims_after = {k: evaluate_dataset(sim, ds) for k, ds in ft.items()}
         poh_after = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
         trims = sim.trims

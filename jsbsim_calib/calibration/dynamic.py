@@ -25,6 +25,7 @@ import numpy as np
 from ..data.dynamic_tests import DynamicTest
 from ..data.schemas import Dataset
 from ..errors import CalibError
+from ..executor import SERIAL, Executor
 from ..dynamics import AXIS_CHANNELS, RecordedTest, fly_test
 from ..jsbsim.trajectory import fly
 from ..factors import FactorSet, step_factors
@@ -184,7 +185,7 @@ def _sensitivity(residuals, start: FactorSet, names: Sequence[str], step: float 
 def dynamic_step(sim: Simulator, step: DynamicStep, tests: Sequence[DynamicTest | RecordedTest],
                  data: dict[str, Dataset],
                  start: FactorSet, *, progress: Callable[[str], None] | None = None,
-                 max_nfev: int | None = MAX_NFEV) -> FitResult | None:
+                 max_nfev: int | None = MAX_NFEV, executor: Executor = SERIAL) -> FitResult | None:
     """One axis: fit the step's identified factors; None when it has no test to fly."""
     mine = [t for t in tests if t.kind in step.kinds]
     if not mine:
@@ -198,7 +199,7 @@ def dynamic_step(sim: Simulator, step: DynamicStep, tests: Sequence[DynamicTest 
     keep, drop = identified_by(jac, np.array(amp_mask), names)
     if keep:
         out = fit(step.name, keep, start, residuals, sim=sim, progress=progress, max_nfev=max_nfev,
-                  prior=STEP_PRIOR, prior_center=start, legs=LEGS[-2:])
+                  prior=STEP_PRIOR, prior_center=start, legs=LEGS[-2:], executor=executor)
     else:                                      # nothing identified: the factors stay where they were
         out = unfitted(step.name, names, start, residuals, sim)
         out.notes.append("no factor identified without the assumed input amplitudes: nothing fitted")
@@ -213,11 +214,12 @@ def dynamic_step(sim: Simulator, step: DynamicStep, tests: Sequence[DynamicTest 
 def dynamic_stage(sim: Simulator, tests: Sequence[DynamicTest | RecordedTest], data: dict[str, Dataset], *,
                   start: FactorSet,
                   steps: Sequence[DynamicStep] = DYNAMIC_STEPS, progress: Callable[[str], None] | None = None,
-                  after_step: Callable[[DynamicStep, FitResult], None] | None = None) -> list[FitResult]:
+                  after_step: Callable[[DynamicStep, FitResult], None] | None = None,
+                  executor: Executor = SERIAL) -> list[FitResult]:
     """Stage 2b: the dynamic steps in order, each from the factors of the last."""
     results, current = [], start
     for step in steps:
-        out = dynamic_step(sim, step, tests, data, current, progress=progress)
+        out = dynamic_step(sim, step, tests, data, current, progress=progress, executor=executor)
         if out is None:
             if progress:
                 progress(f"{step.name}: no dynamic test of kinds {', '.join(step.kinds)}, skipped")
@@ -229,7 +231,7 @@ def dynamic_stage(sim: Simulator, tests: Sequence[DynamicTest | RecordedTest], d
             after_step(step, out)
     joint = refit_step(steps, results)
     if joint is not None:
-        out = dynamic_step(sim, joint, tests, data, current, progress=progress)
+        out = dynamic_step(sim, joint, tests, data, current, progress=progress, executor=executor)
         if out is not None:
             results.append(out)
             sim.set_factors(out.final)

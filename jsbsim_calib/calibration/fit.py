@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import math
 import time
+import uuid
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
 
 from .. import numerics
+from ..executor import SERIAL, Executor
 from ..factors import FactorSet
 from ..jsbsim.simulator import Simulator
 
@@ -125,10 +127,54 @@ def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: Fac
     return out, corr
 
 
+class FitProblem:
+    """A fit's residuals as a pure function of (normalized factors, trim warm starts, prior
+    multiple): every evaluation starts from a freshly loaded JSBSim and the given warm starts,
+    so that it gives the same bits in this process or in any executor's worker, whatever ran
+    before. Called with an item ``(x, warm_starts, prior_multiple)`` it returns the residuals
+    (the executors' form)."""
+
+    def __init__(self, sim: Simulator, residuals, start: FactorSet, names: Sequence[str], x_center: np.ndarray,
+                 prior: float):
+        self.sim, self.residuals, self.start, self.names = sim, residuals, start, list(names)
+        self.x_center, self.prior = x_center, prior
+        self.key = uuid.uuid4().hex        # one serialization per fit (executors)
+
+    def evaluate(self, x: np.ndarray, warm: dict, weight: float) -> tuple[np.ndarray, list[str], dict]:
+        fs = self.start.with_vector(self.names, np.clip(x, -1, 1))
+        sim = self.sim
+        sim.trim_cache = dict(warm)
+        sim.set_factors(fs)
+        sim.fresh()
+        r, lab = self.residuals(fs)
+        if self.prior:
+            r = np.concatenate([r, weight * self.prior * (fs.vector(self.names) - self.x_center)])
+            lab = list(lab) + [f"prior {n}" for n in self.names]
+        return r, list(lab), sim.trim_cache
+
+    def __call__(self, item) -> np.ndarray:
+        return self.evaluate(*item)[0]
+
+
+def _jacobian(problem: FitProblem, executor: Executor, x: np.ndarray, f0: np.ndarray, step: float, warm: dict,
+              weight: float) -> np.ndarray:
+    """Forward differences with an absolute step in normalized units (larger than the trim
+    noise; relative steps would vanish at x = 0), inwards at a bound; the columns are
+    independent work (``executor``)."""
+    hs = [step if xi + step <= 1.0 else -step for xi in x]
+    items = []
+    for i, h in enumerate(hs):
+        xi = np.array(x, float)
+        xi[i] += h
+        items.append((xi, warm, weight))
+    cols = executor.map(problem, items, key=problem.key)
+    return np.column_stack([(c - f0) / h for c, h in zip(cols, hs)])
+
+
 def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[[FactorSet], tuple[np.ndarray, list[str]]],
         *, sim: Simulator, max_nfev: int | None = MAX_NFEV, progress: Callable[[str], None] | None = None,
         ftol: float = FIT_TOL, prior: float = PRIOR_WEIGHT, prior_center: FactorSet | None = None,
-        legs: Sequence[tuple[float, float]] | None = None) -> FitResult:
+        legs: Sequence[tuple[float, float]] | None = None, executor: Executor = SERIAL) -> FitResult:
     """Least-squares fit of ``names`` (others held at ``start``).
 
     ``prior`` adds the residuals ``prior * (x - x_center)`` (x = normalized factor, centre
@@ -138,62 +184,52 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     directions are pinned by the prior, not by round-off (README, "Reproducible fits").
 
     The fit is a sequence of legs (:data:`LEGS`), each from the last one's result: first a
-    path of decreasing priors (the minimum with a strong prior is unique and every start
-    reaches it; a Gauss-Newton step amplifies a perturbation by about |r|/sigma_min^2, which
-    the strong prior keeps small while the residuals are large), then a polish with a small
-    finite-difference step. A leg restarts the optimizer from its result (a fresh damping:
-    it can stop on a kink of the trims, whose tables interpolate linearly) until a restart gains less than
+    path of decreasing priors, then a polish with a small finite-difference step. A leg
+    restarts the optimizer from its result (a fresh damping: it can stop on a kink of the
+    trims, whose tables interpolate linearly) until a restart gains less than
     :data:`RESTART_GAIN` of the cost. ``legs`` replaces :data:`LEGS` (a fit of a few
-    well-identified factors needs no path of priors).
+    well-identified factors needs no path of priors). Every evaluation is a pure function of
+    its point and of the warm starts of the last accepted point (:class:`FitProblem`): the
+    Jacobian's columns run on ``executor`` and give the same bits there.
     """
     names = list(names)
-    t0 = time.perf_counter()
-    trims0 = sim.trims
+    t0, trims0 = time.perf_counter(), sim.trims
     x0 = start.vector(names)
     bad = [n for n, x in zip(names, x0) if not -1.0 <= x <= 1.0]
     if bad:
         raise ValueError(f"start values outside the bounds of {', '.join(bad)}")
-    x_center = (prior_center or FactorSet(extra=start.extra)).vector(names)
+    problem = FitProblem(sim, residuals, start, names,
+                         (prior_center or FactorSet(extra=start.extra)).vector(names), prior)
     labels: list[str] = []
     history: list[dict] = []
-    leg = {"weight": 1.0, "step": LEGS[0][1]}
-    njev = [0]
+    state = {"weight": 1.0, "step": LEGS[0][1], "warm": dict(sim.trim_cache), "last": {}, "njev": 0}
 
     def fun(x):
-        fs = start.with_vector(names, np.clip(x, -1, 1))
-        r, lab = residuals(fs)
-        if prior:
-            r = np.concatenate([r, leg["weight"] * prior * (fs.vector(names) - x_center)])
-            lab = list(lab) + [f"prior {n}" for n in names]
+        r, lab, warm = problem.evaluate(x, state["warm"], state["weight"])
         labels[:] = lab
+        state["last"] = warm
         return r
 
-    def callback(c: float):
-        it = len(history) + 1
-        history.append({"iteration": it, "cost": c, "prior_multiple": leg["weight"], "trims": sim.trims - trims0})
+    def callback(c: float):           # a step was accepted: its warm starts are the next evaluations'
+        state["warm"] = state["last"]
+        history.append({"iteration": len(history) + 1, "cost": c, "prior_multiple": state["weight"],
+                        "trims": sim.trims - trims0})
         if progress:
-            progress(f"{stage}: iteration {it:3d}  cost {c:10.4g}  trims {sim.trims - trims0:6d}  "
+            progress(f"{stage}: iteration {len(history):3d}  cost {c:10.4g}  trims {sim.trims - trims0:6d}  "
                      f"{time.perf_counter() - t0:6.1f} s")
 
     def jac(x, f0):
-        """Forward differences with an absolute step in normalized units (the leg's: larger
-        than the trim noise; relative steps would vanish at x = 0), inwards at a bound."""
-        njev[0] += 1
-        J = np.empty((len(f0), len(x)))
-        for i in range(len(x)):
-            h = leg["step"] if x[i] + leg["step"] <= 1.0 else -leg["step"]
-            xi = np.array(x, float)
-            xi[i] += h
-            J[:, i] = (fun(xi) - f0) / h
-        return J
+        state["njev"] += 1
+        return _jacobian(problem, executor, x, f0, state["step"], state["warm"], state["weight"])
 
     r0 = fun(x0)
+    state["warm"] = state["last"]
     cost0 = 0.5 * numerics.sum_sq(r0)
     if progress:
         progress(f"{stage}: start cost {cost0:.4g} with {len(r0)} residuals, {len(names)} factors")
     x, nfev, res = x0, 0, None
     for weight, step in (legs if legs is not None else LEGS if prior else LEGS[-2:]):   # no prior: no path
-        leg.update(weight=weight, step=step)
+        state.update(weight=weight, step=step)
         cost = math.inf
         for _ in range(1 + MAX_RESTARTS):
             left = None if max_nfev is None else max_nfev - nfev
@@ -207,12 +243,10 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
             if not gained:
                 break
     final = start.with_vector(names, x)
-    r_final, _ = residuals(final)             # leaves the simulator at the final factors
-    if prior:
-        r_final = np.concatenate([r_final, prior * (final.vector(names) - x_center)])
+    r_final, _, _ = problem.evaluate(x, state["warm"], 1.0)     # leaves the simulator at the final factors
     se, corr = _stderr(res.jac, names, r_final, final)
     return FitResult(stage, names, start, final, cost0, 0.5 * numerics.sum_sq(r_final), nfev,
-                     njev[0], int(res.status), str(res.message), time.perf_counter() - t0,
+                     state["njev"], int(res.status), str(res.message), time.perf_counter() - t0,
                      sim.trims - trims0, se, corr, history, list(labels), r_final)
 
 

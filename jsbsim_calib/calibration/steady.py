@@ -10,6 +10,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..data.schemas import Dataset
+from ..executor import SERIAL, Executor
 from ..factors import FactorSet, set_in, step_factors
 from ..jsbsim.simulator import Simulator
 from .fit import MAX_NFEV, FitResult, fit
@@ -22,7 +23,7 @@ STEADY_NAMES = list(step_factors("steady"))
 def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: FactorSet | None = None,
                  climb_points: Sequence[int] | None = None, cruise_points: Sequence[int] | None = None,
                  progress: Callable[[str], None] | None = None,
-                 max_nfev: int | None = MAX_NFEV) -> tuple[FitResult, FitResult]:
+                 max_nfev: int | None = MAX_NFEV, executor: Executor = SERIAL) -> tuple[FitResult, FitResult]:
     """Method stage 1: the 16 coupled factors on the subset, then K_FF alone on fuel flow."""
     start = start or FactorSet()
     ci = stage1_subset(climb) if climb_points is None else list(climb_points)
@@ -36,7 +37,8 @@ def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: Fact
         r2, l2, f2 = point_residuals(sim, kps, ("pct_power", "rpm"))
         return np.array(r1 + r2 + [FAIL_PENALTY * (f1 + f2)]), l1 + l2 + ["trim failures"]
 
-    main = fit("steady", STEADY_NAMES, start, residuals, sim=sim, progress=progress, max_nfev=max_nfev)
+    main = fit("steady", STEADY_NAMES, start, residuals, sim=sim, progress=progress, max_nfev=max_nfev,
+               executor=executor)
     main.notes.append(f"fitted points: climb {ci}, cruise {ki} (row indices of {climb.path.name}, {cruise.path.name})")
 
     def ff_residuals(fs: FactorSet):
@@ -44,7 +46,8 @@ def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: Fact
         r, l, f = point_residuals(sim, kps, ("gph",))
         return np.array(r + [FAIL_PENALTY * f]), l + ["trim failures"]
 
-    ff = fit("fuel flow", list(step_factors("fuel flow")), main.final, ff_residuals, sim=sim, progress=progress)
+    ff = fit("fuel flow", list(step_factors("fuel flow")), main.final, ff_residuals, sim=sim, progress=progress,
+             executor=executor)
     return main, ff
 
 

@@ -9,6 +9,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..data.schemas import Dataset
+from ..executor import SERIAL, Executor
 from ..factors import FactorSet, step_factors
 from ..jsbsim.simulator import Simulator
 from .fit import MAX_NFEV, PRIOR_WEIGHT, FitResult, fit
@@ -76,7 +77,8 @@ TRIM_STEPS: tuple[TrimStep, ...] = (
 def trims_stage(sim: Simulator, data: dict[str, Dataset], *, start: FactorSet,
                 steps: Sequence[TrimStep] = TRIM_STEPS, progress: Callable[[str], None] | None = None,
                 max_nfev: int | None = MAX_NFEV, prior: float | None = None,
-                after_step: Callable[[TrimStep, FitResult], None] | None = None) -> list[FitResult]:
+                after_step: Callable[[TrimStep, FitResult], None] | None = None,
+                executor: Executor = SERIAL) -> list[FitResult]:
     """Method stage 2a: the trim steps in order, each from the factors of the last.
 
     ``data`` maps a kind (``snapshot``, ``flap_climb``, ``poh_climb``, ``poh_cruise``) to
@@ -106,7 +108,7 @@ def trims_stage(sim: Simulator, data: dict[str, Dataset], *, start: FactorSet,
 
         out = fit(step.name, list(step.factors), current, residuals, sim=sim,
                   progress=progress, max_nfev=max_nfev, prior=step.prior if prior is None else prior,
-                  prior_center=current if step.prior_at_start else None)
+                  prior_center=current if step.prior_at_start else None, executor=executor)
         out.notes.append(step.doc)
         for ps, what in [(p, "fitted") for p in sets] + [(p, "held at the step's start") for p in held]:
             rows = [str(ps.dataset.frame["table"].iloc[i]) if "table" in ps.dataset.frame else str(i)

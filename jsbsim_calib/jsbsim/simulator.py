@@ -26,7 +26,7 @@ from .aircraft import (add_effect, add_trim_aid, effect_constants, effect_proper
 from .condition import Condition, TrimResult
 from .product import AircraftPaths, Propeller, load_aircraft_geometry, read_bem_csv, write_aircraft
 from .propulsion import read_baked_factors
-from .xml import Tree, copy, read
+from .xml import Tree, copy, parse, read, tostring, tree
 
 INDICATED_SURFACES = ("elevator", "aileron", "rudder")    # fcs/<surface>-ind-deg, where an aircraft defines it
 
@@ -109,6 +109,27 @@ class Simulator:
             raise
         return sim
 
+    # ------------------------------------------------------------------ pickling (executors)
+    def __getstate__(self) -> dict:
+        """A simulator pickles as what it flies: root, name, the aircraft as loaded (effects
+        included), factor and effect values. Unpickled, it builds its own sandbox."""
+        return {"root": str(self.root), "name": self.name, "tree": tostring(self._tree),
+                "factors": self.factors.as_dict(), "extra": self.factors.extra,
+                "effect_values": dict(self.effect_values)}
+
+    def __setstate__(self, state: dict) -> None:
+        aircraft = tree(parse(state["tree"].decode(), "pickled aircraft"))
+        made = Simulator.with_aircraft(state["root"], state["name"], aircraft,
+                                       FactorSet(state["factors"], state["extra"]), state["effect_values"])
+        self.__dict__.update(made.__dict__)
+        made.__dict__.update(_box=None, _stage=None)      # the sandbox is this one's now
+
+    def fresh(self) -> None:
+        """Reload the aircraft from the sandbox (factor and effect values as set): a JSBSim
+        with no history, so that what runs next depends only on the values, not on what ran
+        before (warm starts aside: :attr:`trim_cache`)."""
+        self.fdm = self._load()
+
     def clone(self) -> "Simulator":
         """A second simulator of the aircraft as it stands here (effects and values included)."""
         return Simulator.with_aircraft(self.root, self.name, self._tree, self.factors, self.effect_values)
@@ -157,6 +178,13 @@ class Simulator:
         fdm = self.new_exec()
         if not fdm.load_model(self.name):
             raise ModelError(f"JSBSim could not load {self.name} from {self._box}")
+        # the values first: what the initialization computes then depends on them only, not on
+        # the values the sandbox file declared when it was written (a fresh load is history-free)
+        for name, f in REGISTRY.items():
+            if not f.baked:
+                fdm[f.property] = self.factors[name]
+        for k, v in self.effect_values.items():
+            fdm[k] = v
         fdm["ic/terrain-elevation-ft"] = -30000.0     # no ground contact at any trim point
         fdm["ic/h-sl-ft"] = 5000.0
         fdm["ic/vt-fps"] = 150.0
@@ -164,11 +192,6 @@ class Simulator:
         fdm["propulsion/set-running"] = -1
         fdm.set_trim_status(True)                     # flaps and actuators reach their command at once
         self.loads += 1
-        for name, f in REGISTRY.items():
-            if not f.baked:
-                fdm[f.property] = self.factors[name]
-        for k, v in self.effect_values.items():
-            fdm[k] = v
         pm = fdm.get_property_manager()
         # outputs an aircraft shows as instruments would (effects that change what is measured)
         self.indicated = {f"{s}_deg": f"fcs/{s}-ind-deg" for s in INDICATED_SURFACES if pm.hasNode(f"fcs/{s}-ind-deg")}
@@ -179,7 +202,8 @@ class Simulator:
 
     def close(self) -> None:
         self.fdm = None
-        shutil.rmtree(self._box, ignore_errors=True)
+        if self._box is not None:
+            shutil.rmtree(self._box, ignore_errors=True)
         if getattr(self, "_stage", None):
             shutil.rmtree(self._stage, ignore_errors=True)
 
@@ -191,7 +215,8 @@ class Simulator:
 
     def __del__(self):
         try:
-            shutil.rmtree(self._box, ignore_errors=True)
+            if self._box is not None:
+                shutil.rmtree(self._box, ignore_errors=True)
             if getattr(self, "_stage", None):
                 shutil.rmtree(self._stage, ignore_errors=True)
         except Exception:

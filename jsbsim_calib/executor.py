@@ -1,0 +1,180 @@
+"""One interface for independent work: in this process, in a process pool, or on a Dask cluster.
+
+Independent work is a list of calls of one function (a fit's Jacobian columns, maneuvers,
+logs, close-loop candidates). :meth:`Executor.map` runs ``fn(item)`` for every item and
+returns the results in order. The function may be a closure over a
+:class:`~jsbsim_calib.jsbsim.simulator.Simulator` and data: it is serialized once with
+cloudpickle (a Simulator pickles as its aircraft, factors and effect values and rebuilds its
+own sandbox where it lands), and every worker keeps what it unpickled for the next call of the
+same function, so a worker loads an aircraft once per fit, not once per task.
+
+The results are the same bits whatever the executor and the number of workers, provided each
+call is a pure function of its item: the fits make it so (every evaluation starts from a
+freshly loaded JSBSim and the trim warm starts of the last accepted point:
+:mod:`jsbsim_calib.calibration.fit`).
+"""
+from __future__ import annotations
+
+import atexit
+import hashlib
+import multiprocessing
+import os
+import shutil
+import tempfile
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import cloudpickle
+
+from .errors import CalibError
+
+_CACHE: dict[str, Callable] = {}          # in a worker: unpickled functions by key
+_CACHE_LIMIT = 4
+
+
+def _call(key: str, payload, item):
+    """A task in a worker: the function ``key`` (unpickled once) applied to ``item``.
+    ``payload``: the serialized function, or the path of a file holding it."""
+    fn = _CACHE.get(key)
+    if fn is None:
+        if len(_CACHE) >= _CACHE_LIMIT:
+            _close(_CACHE.pop(next(iter(_CACHE))))
+        if isinstance(payload, str):
+            with open(payload, "rb") as fh:
+                payload = fh.read()
+        fn = _CACHE[key] = cloudpickle.loads(payload)
+    return fn(item)
+
+
+def _close(fn) -> None:
+    """Close the simulators a cached function holds (their sandboxes)."""
+    for cell in getattr(fn, "__closure__", None) or ():
+        obj = cell.cell_contents
+        if hasattr(obj, "close") and type(obj).__name__ == "Simulator":
+            obj.close()
+
+
+def _worker_init() -> None:
+    atexit.register(lambda: [_close(f) for f in _CACHE.values()])
+
+
+class Executor:
+    """Runs ``fn(item)`` for every item; results in order. ``key``: a name that stays with the
+    same function across calls (a fit's problem): it is serialized once and every worker
+    unpickles it once."""
+
+    name = "serial"
+    workers = 1
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence, key: str | None = None) -> list:
+        return [fn(i) for i in items]
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def describe(self) -> str:
+        return f"{self.name} ({self.workers} worker{'s' if self.workers != 1 else ''})"
+
+
+SERIAL = Executor()
+
+
+class _Payloads:
+    """Serialized functions by key (the last few)."""
+
+    def __init__(self):
+        self._by_key: dict[str, tuple[str, bytes]] = {}
+
+    def get(self, fn: Callable, key: str | None) -> tuple[str, bytes]:
+        if key is not None and key in self._by_key:
+            return self._by_key[key]
+        payload = cloudpickle.dumps(fn)
+        out = (hashlib.sha1(payload).hexdigest(), payload)
+        if key is not None:
+            if len(self._by_key) >= _CACHE_LIMIT:
+                self._by_key.pop(next(iter(self._by_key)))
+            self._by_key[key] = out
+        return out
+
+
+class ProcessExecutor(Executor):
+    """A pool of worker processes on this machine (spawned: no state inherited by accident)."""
+
+    name = "process"
+
+    def __init__(self, workers: int | None = None):
+        self.workers = max(1, int(workers or os.cpu_count() or 1))
+        self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                         initializer=_worker_init)
+        self._payloads = _Payloads()
+        self._dir = Path(tempfile.mkdtemp(prefix="jsbsim-calib-tasks-"))
+
+    def map(self, fn, items, key=None):
+        if self.workers == 1 or len(items) <= 1:
+            return [fn(i) for i in items]
+        digest, payload = self._payloads.get(fn, key)
+        path = self._dir / f"{digest}.pkl"          # the workers read it once; the tasks carry its path
+        if not path.exists():
+            path.write_bytes(payload)
+        return list(self._pool.map(_call, [digest] * len(items), [str(path)] * len(items), items))
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True)
+        shutil.rmtree(self._dir, ignore_errors=True)
+
+
+class DaskExecutor(Executor):
+    """A dask.distributed cluster: ``scheduler`` its address, or None for a local cluster of
+    ``workers`` processes (one thread each: JSBSim is not shared between threads)."""
+
+    name = "dask"
+
+    def __init__(self, scheduler: str | None = None, workers: int | None = None):
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError as exc:      # pragma: no cover - the extra is part of the test install
+            raise CalibError("the dask executor needs dask.distributed: pip install 'jsbsim-calib[cluster]'") from exc
+        self._cluster = None
+        if scheduler:
+            self._client = Client(scheduler)
+        else:
+            self._cluster = LocalCluster(n_workers=max(1, int(workers or os.cpu_count() or 1)), threads_per_worker=1,
+                                         processes=True, dashboard_address=None)
+            self._client = Client(self._cluster)
+        self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
+        self._payloads = _Payloads()
+        self._scattered: dict = {}
+
+    def map(self, fn, items, key=None):
+        if len(items) <= 1:
+            return [fn(i) for i in items]
+        digest, payload = self._payloads.get(fn, key)
+        if digest not in self._scattered:           # sent to every worker once
+            self._scattered = {digest: self._client.scatter(payload, broadcast=True)}
+        futures = self._client.map(_call, [digest] * len(items), [self._scattered[digest]] * len(items), list(items),
+                                   pure=False)
+        return self._client.gather(futures)
+
+    def close(self) -> None:
+        self._client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+
+
+def make_executor(kind: str = "serial", workers: int | None = None, scheduler: str | None = None) -> Executor:
+    """``serial``, ``process`` (``workers``, default: one per core) or ``dask`` (``scheduler``
+    address, or a local cluster of ``workers``)."""
+    if kind == "serial":
+        return SERIAL
+    if kind == "process":
+        return ProcessExecutor(workers)
+    if kind == "dask":
+        return DaskExecutor(scheduler, workers)
+    raise CalibError(f"unknown executor '{kind}': serial, process or dask")

@@ -1,0 +1,93 @@
+"""Independent work on other executors gives the same bits: a fit whose Jacobian columns run
+in a process pool or on a dask.distributed LocalCluster lands on exactly the factors of the
+same fit in this process; a Simulator pickles and rebuilds; a fresh load is history-free."""
+from __future__ import annotations
+
+import pickle
+import warnings
+from pathlib import Path
+
+import cloudpickle
+import numpy as np
+import pytest
+
+from jsbsim_calib.calibration.fit import fit
+from jsbsim_calib.calibration.points import PointSet, point_residuals
+from jsbsim_calib.dynamics import evaluate_dynamic
+from jsbsim_calib.executor import SERIAL, DaskExecutor, ProcessExecutor, make_executor
+from jsbsim_calib.errors import CalibError
+from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.jsbsim.simulator import Simulator
+from jsbsim_calib.workflow import aircraft_data, dynamic_tests
+
+REPO = Path(__file__).resolve().parents[1]
+A = Condition(pressure_alt_ft=5500, weight_lb=2400, ktas=110, cg_in=42.0)
+B = Condition(pressure_alt_ft=1000, weight_lb=2550, kcas=74, cg_in=41.0, mode="full_throttle", mixture="climb")
+
+
+def _small_fit(executor):
+    """K_HP and K_CQ_scale (a baked propeller factor: the workers re-bake their tables) on six
+    POH points of the C172, from neutral."""
+    data = aircraft_data(REPO, "c172")
+    with Simulator(REPO, "c172", baseline=True) as sim:
+        climb = PointSet.from_dataset(data["poh_climb"], sim, [0, 10, 20])
+        cruise = PointSet.from_dataset(data["poh_cruise"], sim, [3, 17, 32])
+
+        def residuals(fs):
+            sim.set_factors(fs)
+            r1, l1, _ = point_residuals(sim, climb, ("roc_fpm",))
+            r2, l2, _ = point_residuals(sim, cruise, ("rpm",))
+            return np.array(r1 + r2), l1 + l2
+
+        out = fit("executor test", ["K_HP", "K_CQ_scale"], sim.factors, residuals, sim=sim, max_nfev=40,
+                  executor=executor)
+    return out.final.as_dict(), out.cost_final, out.nfev
+
+
+def test_a_fresh_load_is_history_free():
+    results = []
+    for history in ([], [B], [B, A, B]):
+        with Simulator(REPO, "c172") as sim:
+            for c in history:
+                sim.trim(c)
+            sim.fresh()
+            t = sim.trim(A)
+            results.append((t.alpha_deg, t.elevator_deg, t.throttle, t.rpm))
+    assert results[0] == results[1] == results[2]
+
+
+def test_a_simulator_pickles_as_what_it_flies():
+    with Simulator(REPO, "c172") as sim:
+        sim.set_factors(sim.factors.replace(K_Clp=0.1, K_CT_scale=0.95))
+        other = cloudpickle.loads(cloudpickle.dumps(sim))
+        try:
+            assert other.sandbox != sim.sandbox and other.factors == sim.factors
+            sim.fresh()
+            other.fresh()
+            assert sim.trim(A).alpha_deg == other.trim(A).alpha_deg
+        finally:
+            other.close()
+    assert not other.sandbox.exists()
+
+
+def test_process_pool_and_dask_give_the_same_bits_as_this_process():
+    serial = _small_fit(SERIAL)
+    with ProcessExecutor(2) as pool:
+        assert _small_fit(pool) == serial
+    with DaskExecutor(workers=2) as dask:
+        assert dask.workers == 2
+        assert _small_fit(dask) == serial
+
+
+def test_dynamic_tests_fly_the_same_on_a_pool():
+    tests = dynamic_tests(REPO, "c172")[:4]
+    with Simulator(REPO, "c172") as sim:
+        a = evaluate_dynamic(sim, tests)
+        with ProcessExecutor(2) as pool:
+            b = evaluate_dynamic(sim, tests, executor=pool)
+    assert [m.model for m in a.metric_results()] == [m.model for m in b.metric_results()]
+
+
+def test_unknown_executor_is_refused():
+    with pytest.raises(CalibError, match="unknown executor"):
+        make_executor("threads")
