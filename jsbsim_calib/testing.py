@@ -121,3 +121,21 @@ def root_copy(repo: Path, dest: Path, folders: Sequence[str] = ROOT_FOLDERS) -> 
     for d in folders:
         shutil.copytree(Path(repo) / d, dest / d)
     return dest
+
+
+def synthetic_fleet(real_log: Path, out_dir: Path, n: int, *, rows: int = 300, seed: int = 0) -> list[Path]:
+    """``n`` G1000 logs cut from a real one (its three header lines, then ``rows`` consecutive
+    rows from a seeded start): a fleet of short flights, some with a quasi-steady segment, some
+    without (those fail as real short logs do)."""
+    import random
+    lines = Path(real_log).read_text().splitlines(keepends=True)
+    head, body = lines[:3], [ln for ln in lines[3:] if ln.strip()][:-1]     # the real log's last line is cut
+    rnd = random.Random(seed)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for i in range(n):
+        start = rnd.randrange(0, len(body) - rows)
+        p = out_dir / f"log_{i:04d}.csv"
+        p.write_text("".join(head + body[start:start + rows]))
+        paths.append(p)
+    return paths
