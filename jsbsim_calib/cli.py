@@ -9,6 +9,10 @@ reports, print).
     jsbsim-calib close-loop AIRCRAFT --data FILE [--json OUT] [--skip STEP] [--out NAME]
     jsbsim-calib close-loop AIRCRAFT --flight-test DIR_OR_FILE... [--json OUT] [--out NAME]
     jsbsim-calib check AIRCRAFT [--json OUT]
+    jsbsim-calib evaluate|check AIRCRAFT --foreign-root DIR|jsbsim [--foreign-aircraft NAME] ...   any JSBSim aircraft
+    jsbsim-calib export flightgear AIRCRAFT --out DIR
+    jsbsim-calib regress AIRCRAFT --baseline REF.json [--data FILE...] [--share X] | --write-baseline REF.json
+    jsbsim-calib validate AIRCRAFT [--stage steady|trims|all] [--fold NAME] [--report-dir reports]
     jsbsim-calib airfoil NAME
 """
 from __future__ import annotations
@@ -156,15 +160,18 @@ def cmd_calibrate(a) -> int:
 
 
 def cmd_evaluate(a) -> int:
-    with Simulator(Path(a.root), a.aircraft, baseline=a.baseline) as sim:
+    with _simulator(a) as sim:
         ds = load_data_for(sim, a.data)
+        ds, estimate = _log_loading(a, sim, ds)        # G1000 logs: the loading given, the weight estimated
         ev = evaluate_dataset(sim, ds, model_kind="baseline" if a.baseline else "calibrated",
                               progress=None)
     print(evaluation_table(ev))
-    out_dir = Path(a.report_dir) / a.aircraft
+    out_dir = Path(a.report_dir) / sim.name
     if ds.kind == "g1000":
-        png, md = write_log_report(ev, out_dir)
+        png, md = write_log_report(ev, out_dir, weight_estimate=estimate)
         print(f"{ds.extra['weight_note']}\nplot: {png}")
+        if estimate is not None:
+            print(estimate.describe() + (" (used)" if a.estimate_weight else " (not used: --estimate-weight)"))
     else:
         md = write_evaluation_report(ev, out_dir)
     print(f"report: {md}")
@@ -249,8 +256,8 @@ def cmd_close_loop(a) -> int:
 
 
 def cmd_check(a) -> int:
-    with Simulator(Path(a.root), a.aircraft, baseline=a.baseline) as sim:
-        rep = report(sim)
+    with _simulator(a) as sim:
+        rep = report(sim, **_check_inputs(sim))
     print(format_stability(rep))
     if a.json:
         Path(a.json).write_text(json.dumps(rep.as_dict(), indent=2) + "\n")
@@ -277,6 +284,141 @@ def cmd_part60(a) -> int:
         print(f"not used: {note}")
     print(f"report: {files.markdown}\nhtml: {files.html} (self-contained)")
     return 0
+
+
+# --------------------------------------------------------------------------- G1000 loading, validate
+LOADING_OPTIONS = ("occupants_lb", "baggage_lb", "fuel_density_lb_per_gal", "cg_in")
+
+
+def _log_loading(a, sim, ds):
+    """A G1000 log with the loading given on the command line and the weight estimated from the
+    log (used instead of the assumption with --estimate-weight); other data unchanged."""
+    from .data.logs import LogLoading, log_dataset
+    from .weight_estimate import estimate_weight, with_weight_offset
+    given = {k: getattr(a, k) for k in LOADING_OPTIONS if getattr(a, k, None) is not None}
+    if ds.kind != "g1000":
+        if given or getattr(a, "estimate_weight", False):
+            raise CalibError("--occupants-lb, --baggage-lb, --fuel-density, --cg-in and --estimate-weight apply to a "
+                             f"G1000 log, not to data of kind '{ds.kind}'")
+        return ds, None
+    if given:
+        ds = log_dataset(ds.path, sim.geometry, LogLoading(**given))
+    try:
+        estimate = estimate_weight(sim, ds)
+    except CalibError as exc:
+        if a.estimate_weight:
+            raise
+        print(f"warning: weight not estimated: {exc}", file=sys.stderr)
+        return ds, None
+    return (with_weight_offset(ds, estimate) if a.estimate_weight else ds), estimate
+
+
+def cmd_validate(a) -> int:
+    from .calibration.validation import STAGE_DATA_KEYS, fold_names, stage_data, validate_steady, validate_trims
+    from .physics_checks import run_physics_checks
+    from .report.validation import format_physics, format_validation, write_validation_report
+    root, say, t0 = Path(a.root), _progress(a.quiet), time.perf_counter()
+    geom = load_aircraft_geometry(root, a.aircraft)
+    stages = ("steady", "trims") if a.stage == "all" else (a.stage,)
+    if a.stage == "all" and not all(k in geom.data_files for k in STAGE_DATA_KEYS["trims"]):
+        stages = ("steady",)
+        print(f"{a.aircraft}: no flight-test data, stage 2a not validated")
+    folds = {st: None for st in stages}
+    if a.fold:                               # each stage runs the named folds it has
+        names = {st: fold_names(root, a.aircraft, st) for st in stages}
+        unknown = [f for f in a.fold if not any(f in n for n in names.values())]
+        if unknown:
+            raise CalibError(f"unknown fold(s) {', '.join(unknown)}; folds: "
+                             + "; ".join(f"{st}: {', '.join(n)}" for st, n in names.items()))
+        folds = {st: [f for f in a.fold if f in names[st]] for st in stages if set(a.fold) & set(names[st])}
+    run = {"steady": validate_steady, "trims": validate_trims}
+    kw = {} if a.max_nfev is None else {"max_nfev": a.max_nfev}
+    vals = [run[st](root, a.aircraft, folds=f, progress=say, **kw) for st, f in folds.items()]
+    for v in vals:
+        print(format_validation(v) + "\n")
+    physics = None
+    if not a.no_physics:
+        physics = run_physics_checks(root, a.aircraft, stage_data(root, a.aircraft, ("poh_climb", "poh_cruise")), say)
+        print(format_physics(physics))
+    command = f"jsbsim-calib validate {a.aircraft}" + ("" if a.stage == "all" else f" --stage {a.stage}")
+    md = write_validation_report(a.aircraft, vals, physics, Path(a.report_dir) / a.aircraft, command)
+    print(f"report: {md}")
+    if a.json:
+        Path(a.json).write_text(json.dumps({"validations": [v.to_json() for v in vals]}, indent=2) + "\n")
+        print(f"json: {a.json}")
+    times = ", ".join(f"{v.stage} {v.wall_time_s:.0f} s ({len(v.folds) + (v.control is not None)} refits, "
+                      f"{v.trims} trims)" for v in vals)
+    extra = "" if physics is None else f", physics checks {physics.wall_time_s:.1f} s"
+    print(f"validation wall time {time.perf_counter() - t0:.0f} s: {times}{extra}")
+    return 0
+
+
+# --------------------------------------------------------------------------- foreign aircraft, export, regress
+def _simulator(a) -> Simulator:
+    """The command's aircraft: a workbench aircraft, or with --foreign-root any JSBSim aircraft."""
+    if not getattr(a, "foreign_root", None):
+        return Simulator(Path(a.root), a.aircraft, baseline=a.baseline)
+    from .jsbsim.foreign import foreign_simulator
+    if a.baseline:
+        raise CalibError("--baseline: a foreign aircraft has no calibration factors")
+    return foreign_simulator(Path(a.root), a.aircraft, a.foreign_root, a.foreign_aircraft)
+
+
+def _check_inputs(sim) -> dict:
+    from .jsbsim.foreign import ForeignSimulator, check_conditions, stall_cases
+    return {"conditions": check_conditions(sim), "stall_cases": stall_cases(sim)} if isinstance(sim, ForeignSimulator) else {}
+
+
+def _foreign_options(parser) -> None:
+    parser.add_argument("--foreign-root", metavar="DIR",
+                        help="fly a JSBSim aircraft the workbench did not generate, from this JSBSim root "
+                             "('jsbsim': the jsbsim package's own aircraft, e.g. c172p, c172x)")
+    parser.add_argument("--foreign-aircraft", metavar="NAME",
+                        help="with --foreign-root: the aircraft there (default AIRCRAFT); a workbench AIRCRAFT lends "
+                             "its POH conventions (leaning altitude, fuel share, rated power, weights, airspeed "
+                             "calibration)")
+
+
+def cmd_export(a) -> int:
+    from .export.flightgear import export_flightgear
+    ex = export_flightgear(Path(a.root), a.aircraft, Path(a.out))
+    for f in ex.files:
+        print(f)
+    print(f"fly it: fgfs --fg-aircraft={ex.folder.parent} --aircraft={ex.name}")
+    return 0
+
+
+def cmd_regress(a) -> int:
+    from .regress import regress, write_baseline
+    say = _progress(a.quiet)
+    if a.write_baseline:
+        print(f"baseline: {write_baseline(Path(a.root), a.aircraft, Path(a.write_baseline), a.data, say)}")
+        return 0
+    if not a.baseline:
+        raise CalibError("regress: give --baseline REF.json (or --write-baseline REF.json)")
+    res = regress(Path(a.root), a.aircraft, a.baseline, a.data, a.share, say)
+    print(res.report())
+    if a.json:
+        Path(a.json).write_text(json.dumps(res.to_json(), indent=2) + "\n")
+        print(f"json: {a.json}")
+    return 1 if res.moved else 0
+
+
+def _export_regress_parsers(sub) -> None:
+    x = sub.add_parser("export", help="write a calibrated aircraft for a simulator: flightgear (an aircraft folder)")
+    x.add_argument("target", choices=("flightgear",), help="flightgear: NAME-set.xml, the FDM, Engines/, README")
+    x.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    x.add_argument("--out", required=True, help="the aircraft folder to write (fgfs --fg-aircraft=ITS_PARENT)")
+    x.set_defaults(func=cmd_export)
+    r = sub.add_parser("regress", help="re-evaluate after a hand edit and list every metric per data point that moved "
+                                       "(exit 1 when something moved)")
+    r.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    r.add_argument("--baseline", metavar="REF.json", help="compare with this baseline")
+    r.add_argument("--write-baseline", metavar="REF.json", help="evaluate and record the baseline instead")
+    r.add_argument("--data", nargs="+", metavar="FILE", help="only these data files (default: all the aircraft's)")
+    r.add_argument("--share", type=float, default=0.1, help="a move counts above this share of its tolerance (0.1)")
+    r.add_argument("--json", help="also write the moves as JSON to this file")
+    r.set_defaults(func=cmd_regress)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -318,7 +460,27 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--baseline", action="store_true", help="evaluate the uncalibrated model")
     e.add_argument("--json", help="write the results as JSON to this file")
     e.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
+    e.add_argument("--occupants-lb", dest="occupants_lb", type=float, help="G1000 log: occupants [lb] (default 340)")
+    e.add_argument("--baggage-lb", dest="baggage_lb", type=float, help="G1000 log: baggage [lb] (default 0)")
+    e.add_argument("--fuel-density", dest="fuel_density_lb_per_gal", type=float,
+                   help="G1000 log: fuel density [lb/US gal] (default 6.0, avgas)")
+    e.add_argument("--cg-in", dest="cg_in", type=float, help="G1000 log: CG station [in] (default the POH CG)")
+    e.add_argument("--estimate-weight", action="store_true",
+                   help="G1000 log: use the weight estimated from the level segments' RPM instead of the loading")
+    _foreign_options(e)
     e.set_defaults(func=cmd_evaluate)
+
+    v = sub.add_parser("validate", help="held-out validation of the calibration stages (refits with data left out) "
+                                        "and physics checks; writes REPORT_DIR/AIRCRAFT/validation.md")
+    v.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    v.add_argument("--stage", choices=("steady", "trims", "all"), default="all",
+                   help="steady: stage 1 folds; trims: stage 2a folds; all (default): those the data allow")
+    v.add_argument("--fold", action="append", metavar="NAME", help="run only this fold (repeatable; e.g. 'flaps 10')")
+    v.add_argument("--max-nfev", dest="max_nfev", type=int, help="evaluations per refit (default 60)")
+    v.add_argument("--no-physics", action="store_true", help="skip the physics checks")
+    v.add_argument("--json", help="also write the validation results as JSON to this file")
+    v.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
+    v.set_defaults(func=cmd_validate)
 
     y = sub.add_parser("synth", help="synthetic flight-test snapshots (or, with --plan, time histories) flown by a "
                                      "truth aircraft folder")
@@ -351,6 +513,7 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
     k.add_argument("--baseline", action="store_true", help="check the uncalibrated model (all factors neutral)")
     k.add_argument("--json", help="also write the full report as JSON to this file")
+    _foreign_options(k)
     k.set_defaults(func=cmd_check)
 
     f = sub.add_parser("airfoil", help="recompute a stored airfoil polar with NeuralFoil")
@@ -366,6 +529,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "time histories (CSV + JSON sidecar)")
     q.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/part60/)")
     q.set_defaults(func=cmd_part60)
+    _export_regress_parsers(sub)
     return p
 
 

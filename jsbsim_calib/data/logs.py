@@ -11,19 +11,23 @@ A log is read and cut into quasi-steady segments by :mod:`jsbsim_calib.data.g100
 Weight: the log has fuel but no weight record. ``weight = empty + occupants + baggage +
 fuel``, with the aircraft's empty weight from its geometry file and the occupants and baggage
 of :class:`LogLoading` -- a stated assumption (two 170 lb adults, no baggage), to be changed
-when the loading is known. The CG is the aircraft's default (its POH CG).
+when the loading is known. The CG is the aircraft's default (its POH CG) unless ``LogLoading.cg_in``
+gives it; loading values outside their plausible ranges are refused (:func:`loading_problems`).
 """
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from ..errors import InputError, Problem, raise_if
 from ..jsbsim.condition import Condition, TrimResult
 from ..physics.geometry import AircraftGeometry
-from ..units import LBM
+from ..units import IN, LBM
 from .g1000.parse import read_g1000
 from .g1000.segments import SegmentCriteria, WeightAssumption, extract_segments, segments_dataframe
 from .schemas import Dataset
@@ -38,6 +42,48 @@ class LogLoading:
     occupants_lb: float = 340.0       # [lb] assumed: two adults at the FAA standard 170 lb
     baggage_lb: float = 0.0           # [lb] assumed
     fuel_density_lb_per_gal: float = 6.0   # [lb/US gal] avgas
+    cg_in: float | None = None        # [in] CG station; None: the aircraft's POH CG
+
+    def __post_init__(self):
+        raise_if(loading_problems(self), "G1000 loading", InputError)
+
+
+# plausible inputs of a logged flight's loading (anything outside is refused, never clipped)
+LOADING_RANGES = {"occupants_lb": (0.0, 1500.0), "baggage_lb": (0.0, 1000.0),
+                  "fuel_density_lb_per_gal": (5.0, 7.5), "cg_in": (0.0, 400.0)}
+MAX_WEIGHT_MARGIN = 1.25     # a log's weight may exceed the aircraft's maximum weight by at most this factor
+
+
+def loading_problems(loading: LogLoading) -> list[Problem]:
+    """Every loading value that is not a number or outside its plausible range (LOADING_RANGES)."""
+    out = []
+    for name, (lo, hi) in LOADING_RANGES.items():
+        v = getattr(loading, name)
+        if v is None and name == "cg_in":
+            continue
+        if not isinstance(v, numbers.Real) or isinstance(v, bool) or not math.isfinite(v):
+            out.append(Problem(name, f"{v!r} is not a finite number"))
+        elif not lo <= v <= hi:
+            out.append(Problem(name, f"{v:g} is outside the plausible range [{lo:g}, {hi:g}]"))
+    return out
+
+
+def check_loading_for(geometry: AircraftGeometry, loading: LogLoading, weights_lb) -> None:
+    """The loading against the aircraft: the CG within its envelope's stations, the weights
+    within :data:`MAX_WEIGHT_MARGIN` of its maximum weight."""
+    problems = []
+    m = geometry.mass
+    if loading.cg_in is not None:
+        fwd, aft = float(np.min(m.cg_envelope_fwd_m)) / IN, float(np.max(m.cg_envelope_aft_m)) / IN
+        if not fwd <= loading.cg_in <= aft:
+            problems.append(Problem("cg_in", f"{loading.cg_in:g} in is outside the aircraft's CG envelope "
+                                              f"[{fwd:.1f}, {aft:.1f}] in"))
+    w_max = m.max_mass_kg / LBM
+    heaviest = float(np.max(weights_lb)) if len(weights_lb) else 0.0
+    if heaviest > MAX_WEIGHT_MARGIN * w_max:
+        problems.append(Problem("weight", f"the loading gives {heaviest:.0f} lb, more than {MAX_WEIGHT_MARGIN:g} x "
+                                          f"the maximum weight {w_max:.0f} lb"))
+    raise_if(problems, "G1000 loading", InputError)
 
 
 def log_dataset(path: str | Path, geometry: AircraftGeometry, loading: LogLoading = LogLoading(),
@@ -59,8 +105,14 @@ def log_dataset(path: str | Path, geometry: AircraftGeometry, loading: LogLoadin
     frame["pitch_deg"] = table["pitch_deg"]
     note = (f"weight = empty {weight.empty_weight_lb:.0f} lb + occupants {loading.occupants_lb:.0f} lb + baggage "
             f"{loading.baggage_lb:.0f} lb (assumed) + logged fuel x {loading.fuel_density_lb_per_gal:g} lb/gal")
+    check_loading_for(geometry, loading, frame["weight_lb"].to_numpy(float) if len(frame) else [])
+    if (loading.occupants_lb, loading.baggage_lb) != (LogLoading.occupants_lb, LogLoading.baggage_lb):
+        note = note.replace("(assumed)", "(given)")
+    if loading.cg_in is not None:
+        note += f"; CG {loading.cg_in:g} in (given)"
     return Dataset("g1000", path, frame, pd.DataFrame(), METRICS,
-                   extra={"log": log, "segments": segs, "table": table, "weight_note": note, "quirks": []})
+                   extra={"log": log, "segments": segs, "table": table, "weight_note": note, "quirks": [],
+                          "cg_in": loading.cg_in})
 
 
 def log_conditions(ds: Dataset, geom: AircraftGeometry) -> list[Condition]:
@@ -69,11 +121,11 @@ def log_conditions(ds: Dataset, geom: AircraftGeometry) -> list[Condition]:
         if r["kind"] == "cruise":
             out.append(Condition(pressure_alt_ft=float(r["pressure_alt_ft"]), weight_lb=float(r["weight_lb"]),
                                  ktas=float(r["ktas"]), oat_c=float(r["oat_c"]), mode="level",
-                                 vs_fpm=float(r["vs_fpm"]), mixture="cruise"))
+                                 vs_fpm=float(r["vs_fpm"]), mixture="cruise", cg_in=ds.extra.get("cg_in")))
         else:
             out.append(Condition(pressure_alt_ft=float(r["pressure_alt_ft"]), weight_lb=float(r["weight_lb"]),
                                  kcas=float(r["kcas"]), oat_c=float(r["oat_c"]), mode="full_throttle",
-                                 mixture="climb"))
+                                 mixture="climb", cg_in=ds.extra.get("cg_in")))
     return out
 
 

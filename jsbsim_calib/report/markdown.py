@@ -331,8 +331,9 @@ def model_table(evaluation) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def write_log_report(evaluation, out_dir: Path) -> tuple[Path, Path]:
-    """A figure of the log with its segments and the model, and a Markdown table."""
+def write_log_report(evaluation, out_dir: Path, weight_estimate=None) -> tuple[Path, Path]:
+    """A figure of the log with its segments and the model, and a Markdown table (and the weight
+    estimated from the log, :class:`jsbsim_calib.weight_estimate.WeightEstimate`, when given)."""
     ds = evaluation.dataset
     out_dir.mkdir(parents=True, exist_ok=True)
     stem = ds.path.stem if ds.path.stem.startswith("log") else f"log_{ds.path.stem}"
@@ -344,9 +345,13 @@ def write_log_report(evaluation, out_dir: Path) -> tuple[Path, Path]:
          f"{int((ds.frame['kind'] == 'climb').sum())} full-throttle climbs); {ds.extra['weight_note']}.", "",
          "Cruise: level flight at the logged true airspeed, best-power mixture -> RPM. Climbs: full throttle at "
          "the logged calibrated airspeed, mixture per the POH -> rate of climb. Pitch for both.", "",
-         "```", format_summary(evaluation.summary()), "```", "",
-         "| # | kind | start min | s | Hp ft | OAT C | KTAS | VS fpm | weight lb | RPM log | model | pitch log | "
-         "model | ROC log | model |", "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+         "```", format_summary(evaluation.summary()), "```", ""]
+    if weight_estimate is not None:
+        d = weight_estimate.describe()
+        used = "used here" if "weight_estimate" in ds.extra else "not used here: `--estimate-weight` evaluates with it"
+        L += [f"{d[:1].upper()}{d[1:]} ({used})."] + [f"Note: {n}" for n in weight_estimate.notes] + [""]
+    L += ["| # | kind | start min | s | Hp ft | OAT C | KTAS | VS fpm | weight lb | RPM log | model | pitch log | "
+          "model | ROC log | model |", "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for p in evaluation.points:
         r = p.inputs
         f = lambda v, d=0: "-" if v is None or not np.isfinite(v) else f"{v:.{d}f}"
