@@ -28,6 +28,7 @@ from .calibration.closeloop import write_aircraft
 from .calibration.steady import steady_factors
 from .errors import CalibError
 from .executor import make_executor
+from .fleet import evaluate_fleet, format_fleet
 from .evaluate import evaluate_dataset
 from .generate import generate
 from .jsbsim.probes import report
@@ -159,7 +160,20 @@ def cmd_calibrate(a) -> int:
     return 0
 
 
+def _evaluate_fleet(a) -> int:
+    """``evaluate AIRCRAFT --data DIR``: every G1000 log of the folder (jsbsim_calib.fleet)."""
+    with _simulator(a) as sim:
+        res = evaluate_fleet(sim, Path(a.data), executor=a.pool, progress=_progress(a.quiet))
+    print(format_fleet(res))
+    if a.json:
+        Path(a.json).write_text(json.dumps(res.to_json(), indent=2) + "\n")
+        print(f"json: {a.json}")
+    return 0
+
+
 def cmd_evaluate(a) -> int:
+    if Path(a.data).is_dir():
+        return _evaluate_fleet(a)
     with _simulator(a) as sim:
         ds = load_data_for(sim, a.data)
         ds, estimate = _log_loading(a, sim, ds)        # G1000 logs: the loading given, the weight estimated
@@ -456,7 +470,8 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("evaluate", help="compare the model with a data file (POH, flight test, G1000 log)")
     e.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
     e.add_argument("--data", required=True,
-                   help="data file: POH climb/cruise CSV, flight-test snapshots or flap climbs, G1000 log")
+                   help="data file: POH climb/cruise CSV, flight-test snapshots or flap climbs, G1000 log; or a "
+                        "folder of G1000 logs (a fleet: one row per log)")
     e.add_argument("--baseline", action="store_true", help="evaluate the uncalibrated model")
     e.add_argument("--json", help="write the results as JSON to this file")
     e.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
