@@ -35,9 +35,9 @@ REPO = Path(__file__).resolve().parents[1]
 PERTURBATION = 1e-8           # relative to the normalized range: a round-off-sized start change
 FACTOR_TOL_SE = 1.0           # one stage (SR20 stage 1): factors within this many standard errors
 PREDICTION_TOL = 0.1          # ... and predictions within this share of their tolerance
-# The C172's chain of stages 1, 2a and 2b amplifies a round-off start change: measured 3.3
-# standard errors of the last fit (K_cd0_offset in the steady refit) and 0.14 of a tolerance
-# (POH climb, 14 fpm); stated in the README. A changed model or fit moves them far more.
+# The C172's chain of stages 1, 2a and 2b amplifies a round-off start change: measured 2.7
+# standard errors of the last fit (K_cd0_offset in the steady refit) and 0.11 of a tolerance
+# (POH climb, 11 fpm); stated in the README. A changed model or fit moves them far more.
 CHAIN_FACTOR_TOL_SE = 4.0
 CHAIN_PREDICTION_TOL = 0.2
 
