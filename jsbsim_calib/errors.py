@@ -27,7 +27,8 @@ class Problem:
 
 
 class InputError(CalibError, ValueError):
-    """Bad input file or argument. ``problems`` lists every problem found."""
+    """Bad input file or argument. ``problems`` lists every problem found; one problem is
+    said on one line (``<file>: <place>: <what>``), several on one line each below the file."""
 
     def __init__(self, source: str | Path, problems: Sequence[Problem] | Problem | str):
         if isinstance(problems, str):
@@ -36,6 +37,9 @@ class InputError(CalibError, ValueError):
             problems = [problems]
         self.source = str(source)
         self.problems = list(problems)
+        if len(self.problems) == 1:          # one line: "<file>: line N, column C: what is wrong"
+            super().__init__(f"{self.source}: {self.problems[0]}")
+            return
         lines = [f"{self.source}: {len(self.problems)} problem(s)"]
         lines += [f"  - {p}" for p in self.problems]
         super().__init__("\n".join(lines))
@@ -51,6 +55,11 @@ class DataError(InputError):
 
 class ModelError(CalibError):
     """A generated or hand-edited JSBSim model is inconsistent or does not load."""
+
+
+class AircraftFileError(InputError, ModelError):
+    """An aircraft, engine or propeller file with bad values (e.g. a factor edited by hand to
+    NaN or past its bounds); ``problems`` lists each with its line."""
 
 
 class TrimError(CalibError):

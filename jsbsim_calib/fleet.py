@@ -87,7 +87,7 @@ class _EvaluateLog:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                ds = log_dataset(path, sim.geometry)
+                ds = log_dataset(path, sim.geometry, require_segments=False)
             if len(ds) == 0:
                 return LogRow(path.name, 0, {}, {}, "no quasi-steady segment")
             sim.fresh()

@@ -75,7 +75,7 @@ def aircraft_data(root: Path, name: str, kinds=("poh_climb", "poh_cruise")) -> d
     missing = [k for k in kinds if k not in geom.data_files]
     if missing:
         raise ModelError(f"aircraft/{name}/geometry.toml names no data for {', '.join(missing)} ([data] table)")
-    return {k: load_dataset(geom.data_files[k], control_travel=geom.control_travel_file) for k in kinds}
+    return {k: load_dataset(geom.data_files[k], control_travel=geom.control_travel_file, geometry=geom) for k in kinds}
 
 
 def model_curves(root: Path, name: str, factors: FactorSet) -> tuple[dict[str, AeroCurves], dict[str, PropellerTables]]:

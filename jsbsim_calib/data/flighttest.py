@@ -47,7 +47,7 @@ import pandas as pd
 
 from ..errors import DataError, Problem
 from ..jsbsim.condition import Condition, TrimResult
-from .schemas import Column, Dataset, Schema, read_csv_checked, reference_columns, validate_frame
+from .schemas import Column, Dataset, Schema, duplicate_rows, read_csv_checked, reference_columns, validate_frame
 
 # data sign = DATA_SIGN * JSBSim sign (and back: the map is its own inverse)
 DATA_SIGN = {"elevator": -1.0, "aileron": 1.0, "rudder": -1.0}
@@ -232,6 +232,8 @@ def load_snapshots(path: Path, raw: pd.DataFrame, control_travel: str | Path | N
     missing = [c.name for c in SNAPSHOT_INPUTS + SNAPSHOT_VALUES if c.name not in cols]
     if missing:
         raise DataError(path, [Problem(f"column '{m}'", "missing") for m in missing])
+    if not len(raw):
+        raise DataError(path, Problem("", "no data rows"))
     labels = _labels(raw)
     frame = pd.DataFrame({c.name: _numeric(raw, c.name) for c in SNAPSHOT_INPUTS + SNAPSHOT_VALUES + SNAPSHOT_OPTIONAL})
     quirks: list[Quirk] = []
@@ -251,6 +253,7 @@ def load_snapshots(path: Path, raw: pd.DataFrame, control_travel: str | Path | N
             t = t.strip()
             if t and not np.isfinite(frame[c.name].iloc[i]) and t.lower() != "nan":
                 problems.append(Problem(f"line {i + 2} ({labels[i]}), column '{c.name}'", f"'{t}' is not a number"))
+    problems += duplicate_rows(raw, labels)
     if problems:
         raise DataError(path, problems)
     core = [c.name for c in SNAPSHOT_INPUTS + SNAPSHOT_VALUES]
@@ -292,6 +295,9 @@ def load_snapshots(path: Path, raw: pd.DataFrame, control_travel: str | Path | N
                             f"(the control-travel table gives {expect:.1f} deg)")
     for q in quirks:
         warnings.warn(f"{path.name}: {q}; left out", QuirkWarning, stacklevel=3)
+    if bad.all():
+        raise DataError(path, [Problem("", f"no usable row: all {len(frame)} rows are left out")] +
+                        [Problem(f"line {q.line} ({q.row})", q.reason) for q in quirks[:10]])
     frame.insert(0, "table", labels)
     frame["line"] = np.arange(2, len(frame) + 2)
     usable = frame[~bad].reset_index(drop=True)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import DataError, Problem
+from .envelope import check_envelope
 from .flighttest import load_flight_test
 from .logs import log_dataset
 from .poh import load_poh
@@ -29,9 +30,30 @@ def load_dataset(path: str | Path, kind: str | None = None, *, control_travel: s
 
     ``control_travel``: the aircraft's control-travel table; with it, flight-test snapshots
     are also checked for surfaces that disagree with their cockpit controls. ``geometry``:
-    the aircraft, needed for a G1000 log (its empty weight enters the weight estimate).
+    the aircraft, needed for a G1000 log (its empty weight enters the weight estimate); with
+    it, every row is checked against the aircraft's envelope (:mod:`.envelope`).
     """
     path = Path(path)
+    if path.is_dir():
+        raise DataError(path, "is a folder; give a data file")
+    ds = _load(path, kind, control_travel, geometry)
+    if geometry is not None:
+        check_envelope(ds.frame, geometry, path, _places(ds))
+    return ds
+
+
+def _places(ds: Dataset):
+    """Names of a row's place in its file, by the kind of data."""
+    f = ds.frame
+    if ds.kind == "g1000":
+        return lambda i, c: (f"segment {f['segment'].iloc[i]} ({f['kind'].iloc[i]}, t {f['t_start_s'].iloc[i]:.0f}-"
+                             f"{f['t_end_s'].iloc[i]:.0f} s), column '{c}'")
+    if "line" in f:
+        return lambda i, c: f"line {f['line'].iloc[i]} ({f['table'].iloc[i]}), column '{c}'"
+    return lambda i, c: f"line {i + 2} (row {i + 1}), column '{c}'"
+
+
+def _load(path: Path, kind: str | None, control_travel, geometry) -> Dataset:
     if path.is_file():
         with open(path, "rb") as fh:
             head = fh.read(64)

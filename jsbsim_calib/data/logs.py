@@ -24,13 +24,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError, Problem, raise_if
+from ..errors import DataError, InputError, Problem, raise_if
 from ..jsbsim.condition import Condition, TrimResult
 from ..physics.geometry import AircraftGeometry
 from ..units import IN, LBM
 from .g1000.parse import read_g1000
 from .g1000.segments import SegmentCriteria, WeightAssumption, extract_segments, segments_dataframe
-from .schemas import Dataset
+from .schemas import Dataset, temperature_problems
 
 METRICS = ("rpm", "roc_fpm", "pitch_deg")
 
@@ -87,14 +87,20 @@ def check_loading_for(geometry: AircraftGeometry, loading: LogLoading, weights_l
 
 
 def log_dataset(path: str | Path, geometry: AircraftGeometry, loading: LogLoading = LogLoading(),
-                criteria: SegmentCriteria = SegmentCriteria()) -> Dataset:
-    """The quasi-steady segments of a log as a dataset of kind ``g1000``."""
+                criteria: SegmentCriteria = SegmentCriteria(), *, require_segments: bool = True) -> Dataset:
+    """The quasi-steady segments of a log as a dataset of kind ``g1000``. A log without a
+    segment is refused (DataError) unless ``require_segments=False`` (a fleet lists it); a
+    segment whose OAT is implausible at its pressure altitude is refused."""
     path = Path(path)
     log = read_g1000(path)
     weight = WeightAssumption(empty_weight_lb=geometry.mass.empty_mass_kg / LBM,
                               occupants_lb=loading.occupants_lb, baggage_lb=loading.baggage_lb,
                               fuel_density_lb_per_gal=loading.fuel_density_lb_per_gal)
     segs = extract_segments(log, criteria, weight=weight)
+    if not segs and require_segments:
+        raise DataError(path, Problem("", f"no quasi-steady segment in {log.duration_s:.0f} s of log ({len(log.data)} "
+                                          "rows): nothing to compare (criteria: level cruise or full-throttle climb "
+                                          "of 30 s or more, jsbsim_calib.data.g1000.segments.SegmentCriteria)"))
     table = segments_dataframe(segs)
     frame = table.copy()
     frame.insert(0, "segment", np.arange(1, len(frame) + 1))
@@ -103,6 +109,9 @@ def log_dataset(path: str | Path, geometry: AircraftGeometry, loading: LogLoadin
     frame["rpm"] = np.where(cruise, table["rpm"], np.nan)
     frame["roc_fpm"] = np.where(cruise, np.nan, table["vs_fpm"])
     frame["pitch_deg"] = table["pitch_deg"]
+    raise_if(temperature_problems(frame, lambda i, c: f"segment {i + 1} (t {frame['t_start_s'].iloc[i]:.0f}-"
+                                                      f"{frame['t_end_s'].iloc[i]:.0f} s), column 'OAT'"),
+             path, DataError)
     note = (f"weight = empty {weight.empty_weight_lb:.0f} lb + occupants {loading.occupants_lb:.0f} lb + baggage "
             f"{loading.baggage_lb:.0f} lb (assumed) + logged fuel x {loading.fuel_density_lb_per_gal:g} lb/gal")
     check_loading_for(geometry, loading, frame["weight_lb"].to_numpy(float) if len(frame) else [])

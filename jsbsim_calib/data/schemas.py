@@ -6,6 +6,9 @@ comparison values, never as targets.
 """
 from __future__ import annotations
 
+import csv
+import io
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -13,6 +16,12 @@ import numpy as np
 import pandas as pd
 
 from ..errors import DataError, Problem
+from ..physics.atmosphere import isa_temperature_c
+
+# A temperature further than this from ISA at the row's pressure altitude is refused: the
+# records are about +-40 deg C (the C172 POH's own climb table reaches ISA +45 at 10,000 ft);
+# a Kelvin value (288) or a Fahrenheit one of a warm day (80 F at 8,000 ft: ISA +58) is not.
+ISA_DEVIATION_LIMIT_C = 50.0
 
 
 @dataclass(frozen=True)
@@ -89,11 +98,36 @@ class Dataset:
         return len(self.frame)
 
 
+def field_count_problems(path: Path) -> list[Problem]:
+    """Lines whose number of fields differs from the header's (a row cut short, or shifted)."""
+    try:
+        text = Path(path).read_text()
+    except (OSError, UnicodeDecodeError):
+        return []                           # read_csv says what is wrong with the file
+    rows = [r for r in csv.reader(io.StringIO(text))]
+    if not rows:
+        return []
+    if text and not text.endswith(("\n", "\r")):
+        warnings.warn(f"{path}: the last line has no line end: the file may be cut short (line {len(rows)})",
+                      stacklevel=3)
+    n = len(rows[0])
+    out = [Problem(f"line {i + 2} (row {i + 1})", f"{len(r)} fields, the header has {n} (a row cut short or shifted)")
+           for i, r in enumerate(rows[1:]) if r and len(r) != n]
+    return out[:10] + ([Problem("", f"and {len(out) - 10} more such rows")] if len(out) > 10 else [])
+
+
 def read_csv_checked(path: Path) -> pd.DataFrame:
+    problems = field_count_problems(path) if Path(path).is_file() else []
+    if problems:
+        raise DataError(path, problems)
     try:
         return pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
     except FileNotFoundError:
         raise DataError(path, "file not found") from None
+    except IsADirectoryError:
+        raise DataError(path, "is a folder; give a data file") from None
+    except OSError as exc:
+        raise DataError(path, f"cannot read: {exc.strerror or exc}") from None
     except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
         raise DataError(path, f"not a readable CSV file: {exc}") from None
 
@@ -138,6 +172,7 @@ def validate_frame(raw: pd.DataFrame, schema: Schema, path: Path) -> pd.DataFram
         out[c.name] = values
     if not len(raw):
         problems.append(Problem("", "no data rows"))
+    problems += temperature_problems(out) + duplicate_rows(raw)
     if problems:
         raise DataError(path, problems)
     # 'ISA' in an OAT column means standard temperature: ISA deviation 0
@@ -151,6 +186,44 @@ def validate_frame(raw: pd.DataFrame, schema: Schema, path: Path) -> pd.DataFram
             out["temp_dev_c"] = np.where(isa, 0.0, np.nan)
     if "flaps_deg" not in out:
         out["flaps_deg"] = 0.0
+    return out
+
+
+def temperature_problems(frame: pd.DataFrame, place=None) -> list[Problem]:
+    """Temperatures more than :data:`ISA_DEVIATION_LIMIT_C` from ISA at the row's pressure
+    altitude (``oat_c``), or ISA deviations beyond it (``temp_dev_c``); ``place(i, column)``
+    names a row (default: CSV line and row)."""
+    place = place or (lambda i, c: f"line {i + 2} (row {i + 1}), column '{c}'")
+    out = []
+    hp = frame["pressure_alt_ft"].to_numpy(float) if "pressure_alt_ft" in frame else np.full(len(frame), np.nan)
+    if "oat_c" in frame:
+        oat = frame["oat_c"].to_numpy(float)
+        dev = oat - np.asarray(isa_temperature_c(np.nan_to_num(hp)), float)
+        for i in np.flatnonzero(np.isfinite(oat) & np.isfinite(hp) & (np.abs(dev) > ISA_DEVIATION_LIMIT_C)):
+            out.append(Problem(place(i, "oat_c"), f"{oat[i]:g} deg C is ISA {dev[i]:+.0f} deg C at {hp[i]:g} ft: more "
+                               f"than {ISA_DEVIATION_LIMIT_C:g} deg C from standard (Kelvin or Fahrenheit?)"))
+    if "temp_dev_c" in frame:
+        dev = frame["temp_dev_c"].to_numpy(float)
+        for i in np.flatnonzero(np.isfinite(dev) & (np.abs(dev) > ISA_DEVIATION_LIMIT_C)):
+            out.append(Problem(place(i, "temp_dev_c"), f"ISA {dev[i]:+g} deg C is more than {ISA_DEVIATION_LIMIT_C:g} "
+                                                       "deg C from standard"))
+    return out
+
+
+def duplicate_rows(raw: pd.DataFrame, labels=None) -> list[Problem]:
+    """Rows identical to an earlier row in every column (a duplicate counts twice in fits and
+    summaries); ``labels``: the rows' names (default 'row N')."""
+    seen: dict[tuple, int] = {}
+    out = []
+    cells = raw.astype(str).apply(lambda c: c.str.strip())
+    for i, row in enumerate(cells.itertuples(index=False, name=None)):
+        if all(v == "" for v in row):
+            continue
+        j = seen.setdefault(row, i)
+        if j != i:
+            name = (lambda k: f"row {k + 1}") if labels is None else (lambda k: labels[k])
+            out.append(Problem(f"line {i + 2} ({name(i)})", f"duplicates line {j + 2} ({name(j)}): a duplicated row "
+                                                             "counts twice in fits and summaries; remove one"))
     return out
 
 

@@ -230,6 +230,11 @@ class Operations:
     poh_fuel_fraction: float       # [-]
     asi_kias_kt: np.ndarray        # [kt]
     asi_kcas_kt: np.ndarray        # [kt]
+    # the flight envelope (optional; NaN: not stated): data outside it are refused or warned
+    # about (jsbsim_calib.data.envelope)
+    service_ceiling_m: float = math.nan     # [m] pressure altitude where the best climb falls to 100 ft/min
+    never_exceed_kias_kt: float = math.nan  # [kt] Vne, indicated
+    stall_landing_kias_kt: float = math.nan  # [kt] Vso: stall speed, landing flaps, max weight, indicated
 
     @property
     def airspeed_calibration(self) -> tuple[np.ndarray, np.ndarray]:
@@ -344,6 +349,9 @@ class _Reader:
         else:
             self.bad(where, f"expected a quantity string like \"1.0 {next(iter(UNITS[dim]))}\", got {type(v).__name__}")
             return float("nan")
+        if not math.isfinite(val):
+            self.bad(where, f"{v!r} is not a finite number")
+            return float("nan")
         if positive and not val > 0:
             self.bad(where, f"must be positive, got {v}")
         if nonneg and val < 0:
@@ -367,6 +375,8 @@ class _Reader:
         if f is None:
             return np.full(len(vals), np.nan)
         a = np.asarray(vals, dtype=float) * f
+        if not np.all(np.isfinite(a)):
+            self.bad(where, f"values must be finite numbers, got {vals}")
         if n is not None and len(a) != n:
             self.bad(where, f"expected {n} values, got {len(a)}")
         if nonneg and np.any(a < 0):
@@ -393,12 +403,17 @@ class _Reader:
         v = self.raw(where, required=required and default is None)
         if v is None:
             return float("nan") if default is None else default
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            self.bad(where, f"expected a plain number, got {v!r}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            self.bad(where, f"expected a plain (finite) number, got {v!r}")
             return float("nan")
         if (lo is not None and v < lo) or (hi is not None and v > hi):
             self.bad(where, f"{v} is outside [{lo}, {hi}]")
         return float(v)
+
+    def integer(self, where: str, **kw) -> int:
+        """A whole number (0 when missing or bad: the problem is recorded)."""
+        v = self.number(where, **kw)
+        return int(v) if math.isfinite(v) else 0
 
     def count(self, where: str, key: str) -> int:
         v = self.raw(where, required=False)
@@ -461,13 +476,13 @@ def _propeller(r: _Reader, known: set[str] | None) -> PropellerSpec:
     prop = PropellerSpec(
         model=r.text("propeller.model", default="propeller"),
         diameter_m=r.qty("propeller.diameter", "length", positive=True),
-        blades=int(r.number("propeller.blades", lo=1, hi=8)),
+        blades=r.integer("propeller.blades", lo=1, hi=8),
         hub_radius_m=r.qty("propeller.hub_radius", "length", positive=True),
         airfoil=r.text("propeller.airfoil"),
         chord_max_m=r.qty("propeller.chord_max", "length", positive=True),
         chord_tip_m=r.qty("propeller.chord_tip", "length", positive=True),
         location_m=_vec3(r, "propeller.location"),
-        sense=int(r.number("propeller.sense", default=1.0)),
+        sense=r.integer("propeller.sense", default=1.0),
         ixx_kgm2=r.qty("propeller.ixx", "inertia", positive=True),
         pitch_m=None if math.isnan(pitch) else pitch,
         constant_speed=cs is not None,
@@ -494,7 +509,7 @@ def _engine(r: _Reader) -> EngineSpec:
         displacement_m3=r.qty("engine.displacement", "volume", positive=True),
         bore_m=r.qty("engine.bore", "length", positive=True),
         stroke_m=r.qty("engine.stroke", "length", positive=True),
-        cylinders=int(r.number("engine.cylinders", lo=1, hi=18)),
+        cylinders=r.integer("engine.cylinders", lo=1, hi=18),
         compression_ratio=r.number("engine.compression_ratio", lo=4, hi=15),
         max_map_pa=r.qty("engine.max_manifold_pressure", "pressure", positive=True),
         min_map_pa=r.qty("engine.min_manifold_pressure", "pressure", positive=True),
@@ -551,9 +566,14 @@ def _gear(r: _Reader) -> tuple[GearContact, ...]:
 def _operations(r: _Reader) -> Operations:
     kias = r.arr("operations.airspeed_calibration_kias", "speed", increasing=True)
     kcas = r.arr("operations.airspeed_calibration_kcas", "speed", n=len(kias), increasing=True)
+    def optional(key: str, dim: str) -> float:
+        return r.qty(f"operations.{key}", dim, required=False, positive=r.raw(f"operations.{key}", False) is not None)
+
     return Operations(r.qty("operations.poh_cg", "length"),
                       r.number("operations.poh_fuel_fraction", lo=0.0, hi=1.0),
-                      kias / 0.514444444444, kcas / 0.514444444444)
+                      kias / 0.514444444444, kcas / 0.514444444444,
+                      optional("service_ceiling", "length"), optional("never_exceed_speed", "speed") / 0.514444444444,
+                      optional("stall_speed_landing", "speed") / 0.514444444444)
 
 
 def _data_files(r: _Reader, path: Path) -> tuple[dict[str, Path], Path | None]:
@@ -596,6 +616,8 @@ def load_geometry(path: str | Path, airfoil_dirs: Sequence[Path] | None = None) 
         doc = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise GeometryError(path, f"not valid TOML: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise GeometryError(path, f"cannot read: {exc}") from None
     known = None
     if airfoil_dirs is not None:
         known = {p.stem for d in airfoil_dirs if Path(d).is_dir() for p in Path(d).glob("*.csv")}
