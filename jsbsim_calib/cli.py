@@ -19,14 +19,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
 
 from .calibration.closeloop import write_aircraft
 from .calibration.steady import steady_factors
-from .errors import CalibError
+from .errors import CalibError, InputError, Problem
 from .executor import make_executor
 from .fleet import evaluate_fleet, format_fleet
 from .evaluate import evaluate_dataset
@@ -56,9 +58,15 @@ def _progress(quiet: bool):
 
 
 def cmd_generate(a) -> int:
-    g = generate(a.aircraft, Path(a.root), baseline=a.baseline, progress=_progress(a.quiet))
+    g = generate(a.aircraft, Path(a.root), baseline=a.baseline, progress=_progress(a.quiet), force=a.force)
     for p in g.files:
         print(p)
+    if g.dropped:
+        print(f"dropped {len(g.dropped)} hand-edited line(s) (--force):", file=sys.stderr)
+        for line in g.dropped:
+            print(f"  {line}", file=sys.stderr)
+    if g.backup is not None:
+        print(f"backup of the replaced files: {g.backup}")
     return 0
 
 
@@ -77,8 +85,7 @@ def _calibrate_steady(a, root: Path, say):
             print(format_summary(res.thesis[kind]))
     print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims")
     if not a.no_write:
-        files = write_calibrated(root, a.aircraft, res.factors, "steady", res.summary())
-        print("written: " + ", ".join(str(f) for f in files))
+        print(write_calibrated(root, a.aircraft, res.factors, "steady", res.summary()).report())
     print(f"report: {write_steady_report(res, Path(a.report_dir) / a.aircraft)}")
     return res.factors, {k: e.summary() for k, e in res.calibrated.items()}
 
@@ -100,8 +107,7 @@ def _calibrate_trims(a, root: Path, say, start=None):
         print(format_summary(res.poh_after[kind].summary()))
     print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims")
     if not a.no_write:
-        files = write_calibrated(root, a.aircraft, res.factors, "trims", res.summary())
-        print("written: " + ", ".join(str(f) for f in files))
+        print(write_calibrated(root, a.aircraft, res.factors, "trims", res.summary()).report())
     print(f"report: {write_trims_report(res, Path(a.report_dir) / a.aircraft)}")
     return res.factors, {**{k: e.summary() for k, e in res.poh_after.items()},
                          **{k: e.summary() for k, e in res.evaluations[last].items()}}
@@ -122,8 +128,7 @@ def _calibrate_dynamic(a, root: Path, say, start=None):
     print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims, "
           f"{res.dynamic_after.frames} frames per dynamic evaluation")
     if not a.no_write:
-        files = write_calibrated(root, a.aircraft, res.factors, "dynamic", res.summary())
-        print("written: " + ", ".join(str(f) for f in files))
+        print(write_calibrated(root, a.aircraft, res.factors, "dynamic", res.summary()).report())
     print(f"report: {write_dynamic_report(res, Path(a.report_dir) / a.aircraft)}")
     return res.factors, res.summaries()
 
@@ -195,12 +200,20 @@ def cmd_evaluate(a) -> int:
     return 0
 
 
+MAX_POINTS = 10000          # synth --points
+
+
 def cmd_synth(a) -> int:
     check_settings(a.seed, a.noise)
     if a.plan:
         return _synth_plan(a)
+    if not 1 <= a.points <= MAX_POINTS:
+        raise InputError("synth", Problem("--points", f"{a.points}: give a number of trims in [1, {MAX_POINTS}]"))
     with Simulator.from_dir(Path(a.truth), Path(a.root)) as truth:
         rows, skipped = synthesize(truth, n=a.points, seed=a.seed, noise=a.noise, progress=_progress(a.quiet))
+    if not rows:
+        raise CalibError(f"synth: none of the {a.points} points trimmed on {Path(a.truth).name}; nothing written "
+                         f"({'; '.join(skipped[:3])})")
     write_csv(rows, Path(a.out))
     for s in skipped:
         print(f"left out (the truth does not trim): {s}", file=sys.stderr)
@@ -451,6 +464,8 @@ def build_parser() -> argparse.ArgumentParser:
     g = sub.add_parser("generate", help="regenerate an aircraft's JSBSim files from aircraft/NAME/geometry.toml")
     g.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
     g.add_argument("--baseline", action="store_true", help="write neutral factors (ignore calibration.json)")
+    g.add_argument("--force", action="store_true",
+                   help="overwrite an aircraft file edited by hand (the lines dropped are listed; a backup is kept)")
     g.set_defaults(func=cmd_generate)
 
     c = sub.add_parser("calibrate", help="run a calibration stage and write the calibrated aircraft")
@@ -552,17 +567,93 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     print(f"warning: {message}", file=sys.stderr)
 
 
+# --------------------------------------------------------------------------- paths given on the command line
+def _output_file(option: str, value) -> list[Problem]:
+    """A file to write: not a folder, in a folder that exists."""
+    p = Path(value)
+    if p.is_dir():
+        return [Problem(option, f"{value}: is a folder; give a file name")]
+    if not p.parent.is_dir():
+        return [Problem(option, f"{value}: the folder {p.parent} does not exist")]
+    return []
+
+
+def _input_file(option: str, value) -> list[Problem]:
+    """A file to read: exists and is not a folder."""
+    p = Path(value)
+    if p.is_dir():
+        return [Problem(option, f"{value}: is a folder; give a file")]
+    if not p.exists():
+        return [Problem(option, f"{value}: no such file")]
+    return []
+
+
+def _output_folder(option: str, value) -> list[Problem]:
+    p = Path(value)
+    return [Problem(option, f"{value}: is a file; give a folder")] if p.exists() and not p.is_dir() else []
+
+
+def path_problems(a) -> list[Problem]:
+    """Every path argument that cannot work, before anything runs (a calibration must not fail
+    after minutes on a JSON file it cannot write)."""
+    out = [] if Path(a.root).is_dir() else [Problem("--root", f"{a.root}: not a folder")]
+    if getattr(a, "json", None):
+        out += _output_file("--json", a.json)
+    if getattr(a, "report_dir", None):
+        out += _output_folder("--report-dir", a.report_dir)
+    if a.command == "evaluate" or (a.command == "close-loop" and a.data):
+        out += _input_file("--data", a.data)
+    if a.command == "synth":
+        out += _output_folder("--out", a.out) if a.plan else _output_file("--out", a.out)
+        if a.plan and a.plan != "level5":
+            out += _input_file("--plan", a.plan)
+        if not Path(a.truth).is_dir():
+            out.append(Problem("--truth", f"{a.truth}: not an aircraft folder"))
+    if a.command in ("close-loop", "part60"):
+        out += [Problem("--flight-test", f"{f}: no such file or folder") for f in (a.flight_test or ())
+                if not Path(f).exists()]
+    if a.command == "regress":
+        out += _input_file("--baseline", a.baseline) if a.baseline else []
+        out += _output_file("--write-baseline", a.write_baseline) if a.write_baseline else []
+        out += [q for f in (a.data or ()) for q in _input_file("--data", f)]
+    if a.command == "export":
+        out += _output_folder("--out", a.out)
+    return out
+
+
+def _run(args) -> int:
+    if args.workers is not None and args.workers < 1:
+        raise InputError("command line", Problem("--workers", f"{args.workers}: give at least 1"))
+    problems = path_problems(args)
+    if problems:
+        raise InputError("command line", problems)
+    with make_executor(args.executor, args.workers, args.scheduler) as args.pool:
+        return args.func(args)
+
+
+def _terminate(signum, frame):
+    raise SystemExit(128 + signum)         # exit handlers run: sandboxes removed, nothing half written
+
+
 def main(argv=None) -> int:
     warnings.showwarning = _show_warning
     args = build_parser().parse_args(argv)
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _terminate)
     try:
-        if args.workers is not None and args.workers < 1:
-            raise CalibError(f"--workers {args.workers}: give at least 1")
-        with make_executor(args.executor, args.workers, args.scheduler) as args.pool:
-            return args.func(args)
+        return _run(args)
     except CalibError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        if exc.filename is None:           # not a file the user named or the workbench writes: a bug
+            raise
+        print(f"error: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

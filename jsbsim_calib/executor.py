@@ -20,7 +20,6 @@ import hashlib
 import multiprocessing
 import os
 import shutil
-import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -28,6 +27,7 @@ from typing import Any, Callable, Sequence
 import cloudpickle
 
 from .errors import CalibError
+from .tempdirs import make_dir
 
 _CACHE: dict[str, Callable] = {}          # in a worker: unpickled functions by key
 _CACHE_LIMIT = 4
@@ -114,7 +114,7 @@ class ProcessExecutor(Executor):
         self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
                                          initializer=_worker_init)
         self._payloads = _Payloads()
-        self._dir = Path(tempfile.mkdtemp(prefix="jsbsim-calib-tasks-"))
+        self._dir = make_dir("jsbsim-calib-tasks-")
 
     def map(self, fn, items, key=None):
         if self.workers == 1 or len(items) <= 1:

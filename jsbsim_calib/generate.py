@@ -7,10 +7,18 @@ and writes ``aircraft/<name>/<name>.xml``, ``engine/<name>_engine.xml``,
 rerunning BEM), an initial-conditions file and a cruise script. Factor values come from
 ``aircraft/<name>/calibration.json`` when it exists (the calibrated product) and are
 neutral otherwise or with ``baseline=True``. Everything is computed and checked before
-the first file is written; a rerun writes identical bytes.
+the first file is written; the files are replaced as one unit (a journal, backups of the
+replaced files: :func:`jsbsim_calib.jsbsim.product.commit_product`); a rerun writes identical
+bytes.
+
+The aircraft file's header records the tool version, a digest of the input files (geometry,
+airfoil polars, control-travel table) and one of its own body without the calibration
+values. An aircraft whose body no longer matches its digest was edited by hand: ``generate``
+refuses to overwrite it (listing the lines it would drop) unless ``force=True``.
 """
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,15 +26,17 @@ from typing import Callable
 
 import numpy as np
 
+from .errors import ModelError
 from .factors import FactorSet
-from .jsbsim.aircraft import aircraft_xml
-from .jsbsim.product import (AircraftPaths, Propeller, airfoil_dirs, bem_csv_text, load_aircraft_geometry,
-                             parse_bem_csv, read_calibration, write_aircraft)
+from .jsbsim.aircraft import aircraft_xml, calibration_digest, declared_factors, dropped_lines, hand_edited
+from .jsbsim.product import (AircraftPaths, Propeller, aircraft_bytes, airfoil_dirs, bem_csv_text, commit_product,
+                             hand_set_factors, load_aircraft_geometry, parse_bem_csv, propeller_bytes,
+                             read_calibration, recover_product, warn_hand_set)
 from .jsbsim.propulsion import BEM_RPM, engine_xml
 from .jsbsim.templates import init_xml, script_xml
-from .jsbsim.xml import Tree, tostring, write_bytes
+from .jsbsim.xml import Tree, copy, parse, read, tostring, tree
 from .physics.aero.model import AeroModel, build_aero
-from .physics.airfoil import load_airfoil
+from .physics.airfoil import airfoil_path, load_airfoil
 from .physics.engine import PistonParams, design_piston
 from .physics.geometry import AircraftGeometry
 from .physics.mass import empty_inertia
@@ -57,10 +67,29 @@ def propeller_base_tables(geom: AircraftGeometry, root: Path) -> PropellerTables
     return propeller_tables(blade, J_GRID, rpm=BEM_RPM, beta75_deg=beta)
 
 
+def input_files(geom: AircraftGeometry, root: Path) -> list[Path]:
+    """The files an aircraft is generated from: its geometry, the airfoil polars it names, its
+    control-travel table."""
+    names = sorted({s.airfoil for s in geom.surfaces} | {geom.propeller.airfoil})
+    files = [geom.path] + [airfoil_path(n, airfoil_dirs(root)) for n in names]
+    return files + ([geom.control_travel_file] if geom.control_travel_file else [])
+
+
+def inputs_digest(files) -> str:
+    """A digest of files by name and content (the same on any machine and checkout path)."""
+    h = hashlib.sha256()
+    for f in files:
+        h.update(Path(f).name.encode() + b"\0" + hashlib.sha256(Path(f).read_bytes()).digest())
+    return "sha256:" + h.hexdigest()
+
+
 @dataclass
 class Generated:
-    """What the chain computed for one aircraft, and its files (path -> bytes; the aircraft
-    and propeller files are written by :func:`jsbsim_calib.jsbsim.product.write_aircraft`)."""
+    """What the chain computed for one aircraft, and its files (path -> bytes, in the order:
+    aircraft, engine, propeller, BEM tables, initial conditions, script). ``calibration``: the
+    digest of the calibration record the factor values came from (None: neutral or given
+    values); after ``generate``: ``dropped``, the hand-edited lines it dropped (``force``),
+    and ``backup``, the folder of the replaced files."""
 
     paths: AircraftPaths
     geometry: AircraftGeometry
@@ -70,6 +99,9 @@ class Generated:
     factors: FactorSet
     aircraft: Tree
     files: dict[str, bytes] = field(default_factory=dict)
+    calibration: str | None = None
+    dropped: list[str] = field(default_factory=list)
+    backup: Path | None = None
 
 
 def build(name: str, root: Path = Path("."), *, factors: FactorSet | None = None, baseline: bool = False,
@@ -77,12 +109,16 @@ def build(name: str, root: Path = Path("."), *, factors: FactorSet | None = None
     """Compute every file of an aircraft (nothing is written)."""
     root = Path(root)
     paths = AircraftPaths(root, name)
+    recover_product(paths)
     say = progress or (lambda s: None)
     say(f"reading {paths.geometry}")
     geom = load_aircraft_geometry(root, name)
     airfoils = {n: load_airfoil(n, airfoil_dirs(root)) for n in {s.airfoil for s in geom.surfaces}}
+    calibration = None
     if factors is None:
         factors = FactorSet() if baseline else read_calibration(paths)
+        if not baseline and paths.calibration.is_file():
+            calibration = calibration_digest(factors)
     aero = build_aero(geom, airfoils, progress=lambda s: say(f"aerodynamics: {s}"))
     say("propeller: blade-element momentum")
     # the tables are baked from their stored (rounded) form, as calibration re-bakes them
@@ -91,28 +127,62 @@ def build(name: str, root: Path = Path("."), *, factors: FactorSet | None = None
     piston = design_piston(geom.engine, paths.engine_file)
     travel = f"Control travel from {geom.control_travel_file.name}." if geom.control_travel_file else ""
     aircraft = aircraft_xml(geom, aero, engine_file=paths.engine_file, propeller_file=paths.propeller_file,
-                            piston=piston, factors=factors, inertia_empty=empty_inertia(geom), travel_comment=travel)
+                            piston=piston, factors=factors, inertia_empty=empty_inertia(geom), travel_comment=travel,
+                            inputs_sha256=inputs_digest(input_files(geom, root)))
     e = geom.engine
     files = {
+        str(paths.aircraft_xml): aircraft_bytes(copy(aircraft), factors, stamp_body=True, calibration=calibration),
         str(paths.engine_xml): tostring(engine_xml(
             piston, f"{e.model}: {e.max_power_w / 745.69987:g} hp at {e.rated_rpm:g} rpm (from aircraft/{name}/geometry.toml)")),
+        str(paths.propeller_xml): propeller_bytes(paths, Propeller(geom, bem, name), factors),
         str(paths.propeller_bem): bem_csv_text(bem).encode(),
         str(paths.init_xml): init_xml(geom).encode(),
         str(paths.script): script_xml(geom, bem).encode(),
     }
-    return Generated(paths, geom, aero, piston, bem, factors, aircraft, files)
+    return Generated(paths, geom, aero, piston, bem, factors, aircraft, files, calibration)
+
+
+MAX_LISTED_LINES = 40
+
+
+def _hand_edits(g: Generated, force: bool) -> list[str]:
+    """The lines of a hand-edited aircraft file that the new one drops; refused (ModelError,
+    listing them) without ``force``. Factor values set by hand are named in warnings."""
+    if not g.paths.aircraft_xml.is_file():
+        return []
+    try:
+        old = read(g.paths.aircraft_xml)
+    except ModelError:
+        return []                                  # unreadable: nothing to keep (it is backed up)
+    if g.calibration is not None:
+        try:
+            warn_hand_set(g.paths, hand_set_factors(declared_factors(old, g.paths.aircraft_xml), g.factors),
+                          "generate (from calibration.json)")
+        except ModelError:
+            pass                                   # bad values by hand: the new file replaces them
+    if not hand_edited(old):
+        return []
+    new = tree(parse(g.files[str(g.paths.aircraft_xml)].decode(), str(g.paths.aircraft_xml)))
+    dropped = dropped_lines(old, new)
+    if force:
+        return dropped
+    shown = dropped[:MAX_LISTED_LINES]
+    more = [f"... and {len(dropped) - len(shown)} more lines"] if len(dropped) > len(shown) else []
+    what = ("it would drop these lines:\n" + "\n".join("  " + d for d in shown + more)) if dropped else \
+        "it drops no line, but restores what the edit removed"
+    raise ModelError(f"{g.paths.aircraft_xml} was edited by hand since the workbench wrote it (its body differs from "
+                     f"the digest in its header); 'generate' rewrites it from {g.paths.geometry.name}: {what}\n"
+                     f"Move the additions into an effect or the geometry file, or run 'jsbsim-calib generate "
+                     f"{g.paths.name} --force' (the old file goes to {g.paths.backups}/)")
 
 
 def generate(name: str, root: Path = Path("."), *, baseline: bool = False, factors: FactorSet | None = None,
-             progress: Callable[[str], None] | None = None) -> Generated:
-    """Build and write all files of an aircraft. Returns what was generated, ``files`` with
-    every file (aircraft, engine, propeller, BEM tables, initial conditions, script)."""
+             progress: Callable[[str], None] | None = None, force: bool = False) -> Generated:
+    """Build and write all files of an aircraft as one unit. Returns what was generated,
+    ``files`` with every file (aircraft, engine, propeller, BEM tables, initial conditions,
+    script). An aircraft file edited by hand is refused (ModelError listing the lines it
+    would drop) unless ``force``; then ``dropped`` lists them."""
     g = build(name, root, factors=factors, baseline=baseline, progress=progress)
-    aircraft_file, propeller_file = write_aircraft(g.paths, g.factors, aircraft=g.aircraft,
-                                                   propeller=Propeller(g.geometry, g.bem, name))
-    for path, data in g.files.items():
-        write_bytes(Path(path), data)
-    engine_file, *others = g.files
-    g.files = {str(aircraft_file): aircraft_file.read_bytes(), engine_file: g.files[engine_file],
-               str(propeller_file): propeller_file.read_bytes(), **{k: g.files[k] for k in others}}
+    g.dropped = _hand_edits(g, force)
+    g.backup = commit_product(g.paths, {Path(p): d for p, d in g.files.items()}).backup
     return g

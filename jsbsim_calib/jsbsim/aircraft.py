@@ -10,13 +10,16 @@ existing file. Writing an aircraft with its factors to disk is
 """
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 
-from ..errors import ModelError
+from .. import __version__
+from ..errors import AircraftFileError, ModelError, Problem
 from ..factors import FACTORS, REGISTRY, FactorSet
 from ..physics.aero.model import AeroModel
 from ..physics.engine import PistonParams
@@ -25,19 +28,20 @@ from ..units import FT, LB_PER_GAL_AVGAS, LBF, LBM, SLUG, US_GAL
 from . import equations
 from .equations import AILERON, ELEVATOR, FLAP, M2_TO_FT2, RUDDER
 from .pilot import OUTPUTS as PILOT_OUTPUTS, pilot_system, throttle_channel
-from .xml import (FACTOR_DIGITS, Tree, comment, element, fmt, function, location, operation, parse, prop, read, sub,
-                  table, tree, value)
+from .xml import (FACTOR_DIGITS, Tree, comment, copy, element, fmt, function, location, operation, parse, prop, read,
+                  sub, table, tostring, tree, value)
 
 
 # --------------------------------------------------------------------------- writing
 def aircraft_xml(geom: AircraftGeometry, aero: AeroModel, *, engine_file: str, propeller_file: str,
                  piston: PistonParams, factors: FactorSet, inertia_empty: np.ndarray,
-                 travel_comment: str = "") -> Tree:
+                 travel_comment: str = "", inputs_sha256: str = "") -> Tree:
     """The aircraft file: what the strip model, the engine design and the mass properties
-    computed, in JSBSim units, with every calibration factor declared at its value."""
+    computed, in JSBSim units, with every calibration factor declared at its value.
+    ``inputs_sha256``: the digest of the files it was generated from (its header's record)."""
     root = element("fdm_config", name=geom.title, version="2.0", release="ALPHA")
     root.text = "\n"
-    _header(root, geom)
+    _header(root, geom, inputs_sha256)
     _metrics(root, geom, aero)
     _mass_balance(root, geom, inertia_empty)
     _ground_reactions(root, geom)
@@ -49,7 +53,7 @@ def aircraft_xml(geom: AircraftGeometry, aero: AeroModel, *, engine_file: str, p
     return tree(root)
 
 
-def _header(root, geom: AircraftGeometry) -> None:
+def _header(root, geom: AircraftGeometry, inputs_sha256: str) -> None:
     hdr = sub(root, "fileheader")
     sub(hdr, "author", "jsbsim-calib (generated)")
     sub(hdr, "filecreationdate", "2026-11-21")
@@ -58,6 +62,10 @@ def _header(root, geom: AircraftGeometry) -> None:
     sub(hdr, "note", f"Generated from {geom.path.parent.name}/{geom.path.name} by 'jsbsim-calib generate "
                      f"{geom.name}'. Edit the geometry file and regenerate, or edit the calibration "
                      "properties below by hand. Public sources are cited in the geometry file.")
+    comment(hdr, "the workbench's record: its version, the digest of the input files, of this file's body (without "
+                 "the calibration values and this record: a different body means hand edits) and of the "
+                 "calibration record the values came from")
+    sub(hdr, GENERATOR, program="jsbsim-calib", version=__version__, inputs=inputs_sha256, body="")
 
 
 def _metrics(root, geom: AircraftGeometry, aero: AeroModel) -> None:
@@ -274,19 +282,46 @@ def add_trim_aid(aircraft: Tree, location_m) -> None:
 
 
 # --------------------------------------------------------------------------- factor values
-def _declared_factors(aircraft: Tree) -> dict[str, float]:
+def _declaration_value(el, what: str) -> tuple[float, Problem | None]:
+    """The number a declaration's ``value`` holds, or the problem with it."""
+    text = el.get("value", "")
+    where = f"line {el.sourceline}, {what}"
+    try:
+        v = float(text)
+    except ValueError:
+        return math.nan, Problem(where, f"value {text!r} is not a number")
+    if not math.isfinite(v):
+        return v, Problem(where, f"value {text!r} is not a finite number")
+    return v, None
+
+
+def declared_factors(aircraft: Tree, source: str | Path = "aircraft file") -> dict[str, float]:
+    """Factor values declared in a parsed aircraft file. Raises :class:`AircraftFileError`
+    listing every declaration whose value is not a finite number or is outside the factor's
+    bounds (a hand edit the calibration would never write), each with its line."""
     by_prop = {f.property: f.name for f in FACTORS}
-    vals = {}
+    vals, problems = {}, []
     for el in aircraft.iter("property"):
         name = (el.text or "").strip()
         if name in by_prop and el.get("value") is not None:
-            vals[by_prop[name]] = float(el.get("value"))
+            f = REGISTRY[by_prop[name]]
+            v, bad = _declaration_value(el, f"factor {f.name} ({f.property})")
+            if bad is None and not f.lower - 1e-12 <= v <= f.upper + 1e-12:
+                bad = Problem(f"line {el.sourceline}, factor {f.name} ({f.property})",
+                              f"value {v:g} is outside its bounds [{f.lower:g}, {f.upper:g}] {f.unit.strip('-')}".rstrip())
+            if bad is not None:
+                problems.append(bad)
+            else:
+                vals[f.name] = v
+    if problems:
+        raise AircraftFileError(source, problems)
     return vals
 
 
 def read_factors(aircraft_xml_path: Path) -> FactorSet:
-    """Factor values declared in an aircraft file (missing ones stay neutral)."""
-    return FactorSet(_declared_factors(read(aircraft_xml_path)))
+    """Factor values declared in an aircraft file (missing ones stay neutral); refused
+    (:class:`AircraftFileError`) when a value is not a number or outside its bounds."""
+    return FactorSet(declared_factors(read(aircraft_xml_path), aircraft_xml_path))
 
 
 def set_factor_values(aircraft: Tree, factors: Mapping[str, float]) -> None:
@@ -377,8 +412,15 @@ def effect_values(aircraft: Tree) -> dict[str, dict[str, float]]:
     for s in aircraft.getroot().findall("system"):
         n = s.get("name", "")
         if n.startswith(EFFECT_SYSTEM_PREFIX):
-            out[n[len(EFFECT_SYSTEM_PREFIX):]] = {(p.text or "").strip(): float(p.get("value"))
-                                                  for p in s.findall("property") if p.get("value") is not None}
+            values, problems = {}, []
+            for p in s.findall("property"):
+                if p.get("value") is not None:
+                    v, bad = _declaration_value(p, f"effect factor {(p.text or '').strip()}")
+                    problems += [bad] if bad else []
+                    values[(p.text or "").strip()] = v
+            if problems:
+                raise AircraftFileError(f"effect '{n[len(EFFECT_SYSTEM_PREFIX):]}'", problems)
+            out[n[len(EFFECT_SYSTEM_PREFIX):]] = values
     return out
 
 
@@ -395,3 +437,89 @@ def set_effect_values(aircraft: Tree, values: Mapping[str, float]) -> None:
                 k = (p.text or "").strip()
                 if k in values and p.get("value") is not None:
                     p.set("value", fmt(values[k], FACTOR_DIGITS))
+
+
+# --------------------------------------------------------------------------- the workbench's record
+GENERATOR = "generator"        # <fileheader><generator program version inputs body [calibration]/>
+
+
+def generator_record(aircraft: Tree) -> dict[str, str]:
+    """The workbench's record in an aircraft's header ({} when the file has none)."""
+    el = aircraft.getroot().find(f"fileheader/{GENERATOR}")
+    return dict(el.attrib) if el is not None else {}
+
+
+def _value_declarations(root):
+    """The declarations whose values calibration sets: factors and effect factors."""
+    factors = {f.property for f in FACTORS}
+    for s in root.findall("system"):
+        effect = s.get("name", "").startswith(EFFECT_SYSTEM_PREFIX)
+        for p in s.findall("property"):
+            if p.get("value") is not None and (effect or (p.text or "").strip() in factors):
+                yield p
+
+
+def canonical_body(aircraft: Tree) -> bytes:
+    """The file as written without the calibration values and the record: what
+    :func:`body_digest` hashes and what a hand edit changes."""
+    box = copy(aircraft)
+    root = box.getroot()
+    el = root.find(f"fileheader/{GENERATOR}")
+    if el is not None:
+        el.getparent().remove(el)
+    for p in _value_declarations(root):
+        p.set("value", "")
+    return tostring(box, indent=False)
+
+
+def body_digest(aircraft: Tree) -> str:
+    return "sha256:" + hashlib.sha256(canonical_body(aircraft)).hexdigest()
+
+
+def hand_edited(aircraft: Tree) -> bool | None:
+    """True when the body differs from the one the workbench last wrote (hand edits); None
+    when the file has no record (written by hand or before the record existed)."""
+    body = generator_record(aircraft).get("body")
+    return None if not body else body != body_digest(aircraft)
+
+
+def calibration_digest(factors) -> str:
+    """A digest of calibration values: the factors away from neutral, as the aircraft file
+    writes them (a factor added to the registry later, at neutral, does not change it)."""
+    vals = {f.name: fmt(factors[f.name], FACTOR_DIGITS) for f in FACTORS
+            if f.name in factors and fmt(factors[f.name], FACTOR_DIGITS) != fmt(f.neutral, FACTOR_DIGITS)}
+    return "sha256:" + hashlib.sha256(json.dumps(vals, sort_keys=True).encode()).hexdigest()
+
+
+KEEP = object()
+
+
+def stamp(aircraft: Tree, *, body: bool, calibration=KEEP) -> None:
+    """Update the record of a tree about to be written: ``body`` recomputes the body digest
+    (the workbench's own edits are not hand edits; a tree the workbench found hand-edited is
+    stamped with ``body=False`` so the edits stay visible); ``calibration``: the digest of
+    the calibration record the values come from, None for values that do not (a baseline,
+    given factors), :data:`KEEP` to leave it. A file without a header record is left alone."""
+    el = aircraft.getroot().find(f"fileheader/{GENERATOR}")
+    if el is None:
+        return
+    if calibration is not KEEP:
+        if calibration is None:
+            el.attrib.pop("calibration", None)
+        else:
+            el.set("calibration", calibration)
+    if body:
+        el.set("version", __version__)
+        el.set("body", body_digest(aircraft))
+
+
+def dropped_lines(old: Tree, new: Tree) -> list[str]:
+    """Lines of ``old`` (calibration values left out) that ``new`` does not have, in order."""
+    import difflib
+    a = canonical_body(old).decode().splitlines()
+    b = canonical_body(new).decode().splitlines()
+    out = []
+    for tag, i1, i2, _, _ in difflib.SequenceMatcher(None, a, b, autojunk=False).get_opcodes():
+        if tag in ("delete", "replace"):
+            out += [f"line {i + 1}: {a[i].strip()}" for i in range(i1, i2)]
+    return out

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import math
 import shutil
-import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -41,6 +40,7 @@ import numpy as np
 
 from ..errors import ModelError, TrimError
 from ..factors import FactorSet
+from ..tempdirs import make_dir
 from ..physics.geometry import (AircraftGeometry, ControlSurface, MassSpec, MassStation, Operations, PropellerSpec,
                                 ReferenceSpec, Tank)
 from ..units import FT, HP, IN, LB_PER_GAL_AVGAS, LBM, US_GAL
@@ -475,7 +475,7 @@ class ForeignSimulator(Simulator):
         self.factors = FactorSet()
         self.effect_values: dict[str, float] = {}
         self._baked: dict[str, float] = {}
-        self._box = Path(tempfile.mkdtemp(prefix="jsbsim-calib-foreign-"))
+        self._box = make_dir("jsbsim-calib-foreign-")
         try:
             _stage_root(self.root, name, self._box)
             self._tree = read(self.aircraft.path)

@@ -10,26 +10,41 @@ baked in).
 (and effect) values into the aircraft file and the propeller factors into the propeller
 tables, each file written atomically. The product, the calibration sandbox, a calibrated
 aircraft and a close-loop aircraft are all written through it.
+
+The product's files change together: :func:`write_calibrated` (and ``generate``) replace
+them as one unit through :mod:`jsbsim_calib.commit` (temporary files, a journal, renames; the
+replaced files backed up to ``aircraft/<name>/backup/``, the last :data:`BACKUPS_KEPT`), and
+every reader calls :func:`recover_product` first, so a killed write leaves the old set or
+the new one. :func:`check_consistent` refuses a set whose aircraft file was written from
+other calibration values than ``calibration.json`` holds (files of different commits).
+A calibrated aircraft is written without re-indenting it: hand-added comments, functions and
+formatting stay; only the factor values change.
 """
 from __future__ import annotations
 
 import json
 import shutil
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 
 from .. import __version__
-from ..errors import ModelError
-from ..factors import FactorSet
+from ..commit import commit, recover
+from ..errors import AircraftFileError, ModelError, Problem
+from ..factors import REGISTRY, FactorError, FactorSet
 from ..physics.airfoil import AIRFOIL_DIR
 from ..physics.geometry import AircraftGeometry, load_geometry
 from ..physics.propeller import PropellerTables, apply_factors
-from .aircraft import propulsion_files, set_effect_values, set_factor_values
+from .aircraft import (KEEP, calibration_digest, declared_factors, generator_record, hand_edited, propulsion_files,
+                       set_effect_values, set_factor_values, stamp)
 from .propulsion import propeller_tree
-from .xml import Tree, read, write, write_bytes
+from .xml import FACTOR_DIGITS, Tree, fmt, indent, read, tostring, write_bytes
+
+BACKUPS_KEPT = 3                 # backups of replaced product files kept in aircraft/<name>/backup/
+JOURNAL = ".commit-journal.json"
 
 CALIBRATION_DIGITS = 10          # decimals of the factor values in calibration.json (and the aircraft file)
 
@@ -90,6 +105,30 @@ class AircraftPaths:
     def script(self) -> Path:
         return self.root / "scripts" / f"{self.name}_cruise.xml"
 
+    @property
+    def journal(self) -> Path:
+        return self.folder / JOURNAL
+
+    @property
+    def backups(self) -> Path:
+        return self.folder / "backup"
+
+    @property
+    def product_files(self) -> list[Path]:
+        """Every file the workbench writes for the aircraft (what a commit may replace)."""
+        return [self.aircraft_xml, self.propeller_xml, self.calibration, self.engine_xml, self.propeller_bem,
+                self.init_xml, self.script]
+
+
+def recover_product(paths: AircraftPaths) -> str | None:
+    """Finish or roll back an interrupted write of the aircraft's files (:func:`jsbsim_calib.commit.recover`)."""
+    if not paths.folder.is_dir():
+        return None
+    done = recover(paths.journal, paths.product_files)
+    if done == "finished":
+        warnings.warn(f"{paths.folder}: an interrupted write of the aircraft's files was finished from its journal")
+    return done
+
 
 def airfoil_dirs(root: Path) -> list[Path]:
     return [root / "airfoils", AIRFOIL_DIR]
@@ -105,11 +144,19 @@ def load_aircraft_geometry(root: Path, name: str) -> AircraftGeometry:
 
 # --------------------------------------------------------------------------- calibration record
 def read_calibration(paths: AircraftPaths) -> FactorSet:
-    """Factor values of the calibration record (neutral when there is none)."""
+    """Factor values of the calibration record (neutral when there is none); refused
+    (:class:`AircraftFileError`) when the record is not readable JSON or holds bad values."""
+    recover_product(paths)
     if not paths.calibration.is_file():
         return FactorSet()
-    data = json.loads(paths.calibration.read_text())
-    return FactorSet(data.get("factors", {}))
+    try:
+        data = json.loads(paths.calibration.read_text())
+        factors = data.get("factors", {}) if isinstance(data, dict) else None
+        if not isinstance(factors, dict):
+            raise ValueError("no 'factors' object")
+        return FactorSet(factors)
+    except (ValueError, TypeError, UnicodeDecodeError, FactorError) as exc:
+        raise AircraftFileError(paths.calibration, Problem("factors", f"not a calibration record: {exc}")) from None
 
 
 def rounded(factors: FactorSet) -> FactorSet:
@@ -118,9 +165,9 @@ def rounded(factors: FactorSet) -> FactorSet:
     return FactorSet({k: round(v, CALIBRATION_DIGITS) for k, v in factors.items()})
 
 
-def write_calibration_record(paths: AircraftPaths, factors: FactorSet, stage: str, record: dict) -> Path:
-    """Store the factors and the record of the stage that produced them beside the aircraft.
-    A stage-1 record starts a new history (the flight-test stage builds on it)."""
+def calibration_record_bytes(paths: AircraftPaths, factors: FactorSet, stage: str, record: dict) -> bytes:
+    """The calibration record with the factors and the record of the stage that produced
+    them. A stage-1 record starts a new history (the flight-test stage builds on it)."""
     rec = json.loads(paths.calibration.read_text()) if paths.calibration.is_file() else {}
     rec["aircraft"] = paths.name
     rec["jsbsim_calib"] = __version__
@@ -128,8 +175,7 @@ def write_calibration_record(paths: AircraftPaths, factors: FactorSet, stage: st
     if stage == "steady":
         rec["stages"] = {}
     rec.setdefault("stages", {})[stage] = record
-    write_bytes(paths.calibration, (json.dumps(rec, indent=2) + "\n").encode())
-    return paths.calibration
+    return (json.dumps(rec, indent=2) + "\n").encode()
 
 
 # --------------------------------------------------------------------------- BEM tables
@@ -148,7 +194,17 @@ def bem_csv_text(tables: PropellerTables) -> str:
 
 
 def read_bem_csv(path: Path) -> PropellerTables:
-    return parse_bem_csv(path.read_text(), str(path))
+    """The neutral BEM tables beside an aircraft; :class:`AircraftFileError` naming the file when
+    it is missing, cut or not numbers (``generate`` rewrites it)."""
+    try:
+        tables = parse_bem_csv(path.read_text(), str(path))
+    except (OSError, UnicodeDecodeError, ValueError, IndexError) as exc:
+        raise AircraftFileError(path, Problem("", f"not the BEM tables 'generate' writes ({exc}); run 'jsbsim-calib "
+                                                  f"generate' to rewrite them")) from None
+    if not all(np.all(np.isfinite(a)) for a in (tables.J, tables.CT, tables.CP)):
+        raise AircraftFileError(path, Problem("", "holds values that are not finite numbers; run 'jsbsim-calib "
+                                                  "generate' to rewrite it"))
+    return tables
 
 
 def parse_bem_csv(text: str, source: str = "propeller_bem.csv") -> PropellerTables:
@@ -180,51 +236,167 @@ class Propeller:
     aircraft: str
 
 
+def aircraft_bytes(aircraft: Tree, factors: FactorSet, *, effect_values: Mapping[str, float] | None = None,
+                   indent_file: bool = True, stamp_body: bool = False, calibration=KEEP) -> bytes:
+    """The bytes of an aircraft file with the values of ``factors`` (and ``effect_values``, by
+    property) declared in it. ``indent_file=False`` keeps the tree's formatting (a calibrated
+    aircraft: hand edits stay as they are); ``stamp_body`` records the body's digest (the
+    workbench's own edits are not hand edits); ``calibration``: the digest of the calibration
+    record the values come from (None: not from one; KEEP: unchanged) (:func:`.aircraft.stamp`)."""
+    set_factor_values(aircraft, factors)
+    if effect_values:
+        set_effect_values(aircraft, effect_values)
+    if indent_file:
+        indent(aircraft)
+    stamp(aircraft, body=stamp_body, calibration=calibration)
+    return tostring(aircraft, indent_file)
+
+
+def propeller_bytes(paths: AircraftPaths, propeller: Propeller, factors: FactorSet) -> bytes:
+    return tostring(propeller_tree(propeller.geometry, propeller.bem, factors, aircraft=propeller.aircraft,
+                                   file_name=paths.propeller_file))
+
+
 def write_aircraft(paths: AircraftPaths, factors: FactorSet, *, aircraft: Tree | None = None,
-                   propeller: Propeller | None = None, effect_values: Mapping[str, float] | None = None) -> list[Path]:
+                   propeller: Propeller | None = None, effect_values: Mapping[str, float] | None = None,
+                   stamp_body: bool = False) -> list[Path]:
     """Write an aircraft with its factors; returns the files written.
 
     ``aircraft``: the parsed aircraft file; the values of ``factors`` (and ``effect_values``, by
-    property) are declared in it and it is written to ``paths.aircraft_xml``. ``propeller``: the
-    propeller tables are baked with the propeller factors of ``factors`` and written to
-    ``paths.propeller_xml``. Either may be left out (a derived aircraft flies on its parent's
-    propeller file; the sandbox re-bakes its propeller alone when only propeller factors
-    change). Each file is written atomically."""
+    property) are declared in it and it is written to ``paths.aircraft_xml`` (``stamp_body``:
+    its record's body digest recomputed). ``propeller``: the propeller tables are baked with the
+    propeller factors of ``factors`` and written to ``paths.propeller_xml``. Either may be left
+    out (a derived aircraft flies on its parent's propeller file; the sandbox re-bakes its
+    propeller alone when only propeller factors change). Each file is written atomically; the
+    product's files are written together by :func:`write_calibrated` and ``generate``."""
     out = []
     if aircraft is not None:
-        set_factor_values(aircraft, factors)
-        if effect_values:
-            set_effect_values(aircraft, effect_values)
-        write(aircraft, paths.aircraft_xml)
+        write_bytes(paths.aircraft_xml, aircraft_bytes(aircraft, factors, effect_values=effect_values,
+                                                       stamp_body=stamp_body))
         out.append(paths.aircraft_xml)
     if propeller is not None:
-        write(propeller_tree(propeller.geometry, propeller.bem, factors, aircraft=propeller.aircraft,
-                             file_name=paths.propeller_file), paths.propeller_xml)
+        write_bytes(paths.propeller_xml, propeller_bytes(paths, propeller, factors))
         out.append(paths.propeller_xml)
     return out
 
 
-def write_calibrated(root: Path | str, name: str, factors: FactorSet, stage: str, record: dict) -> list[Path]:
-    """Write calibrated factors into an aircraft of ``root`` (aircraft file, baked propeller,
-    calibration record). Returns the files written. A steady-stage result starts a new
-    record (the flight-test stage builds on it and must be rerun)."""
+# --------------------------------------------------------------------------- the product written as one unit
+@dataclass(frozen=True)
+class FactorChange:
+    name: str
+    old: float            # in the aircraft file before the write
+    new: float
+
+
+@dataclass(frozen=True)
+class ProductWrite:
+    """What a write of the product did: the files, the factor values it changed, the factors
+    it found set by hand (file value != calibration.json) and overwrote, and the backup."""
+
+    files: list[Path]
+    changes: list[FactorChange] = field(default_factory=list)
+    hand_set: list[str] = field(default_factory=list)
+    backup: Path | None = None
+
+    def __iter__(self):
+        return iter(self.files)
+
+    def report(self) -> str:
+        lines = ["written: " + ", ".join(str(f) for f in self.files)]
+        if self.changes:
+            lines.append(f"factor values changed ({len(self.changes)}):")
+            lines += [f"  {c.name:<18} {c.old:.10g} -> {c.new:.10g}" for c in self.changes]
+        else:
+            lines.append("factor values unchanged")
+        if self.backup is not None:
+            lines.append(f"backup of the replaced files: {self.backup}")
+        return "\n".join(lines)
+
+
+def _same(a: float, b: float) -> bool:
+    """Equal as the aircraft file writes them (:data:`FACTOR_DIGITS` significant digits)."""
+    return fmt(a, FACTOR_DIGITS) == fmt(b, FACTOR_DIGITS)
+
+
+def factor_changes(old: Mapping[str, float], new: Mapping[str, float]) -> list[FactorChange]:
+    """The registry factors whose value goes from ``old`` (missing: neutral) to another in ``new``."""
+    return [FactorChange(k, float(old.get(k, f.neutral)), float(new[k])) for k, f in REGISTRY.items()
+            if k in new and not _same(old.get(k, f.neutral), new[k])]
+
+
+def hand_set_factors(declared: Mapping[str, float], recorded: Mapping[str, float]) -> list[FactorChange]:
+    """Factors whose value in the aircraft file differs from calibration.json (set by hand):
+    ``old`` the record's value, ``new`` the file's."""
+    return [FactorChange(k, float(recorded[k]), float(v)) for k, v in declared.items()
+            if k in recorded and not _same(v, recorded[k])]
+
+
+def warn_hand_set(paths: AircraftPaths, hand: list[FactorChange], what: str) -> None:
+    for h in hand:
+        warnings.warn(f"{paths.aircraft_xml}: {h.name} = {h.new:.10g} differs from calibration.json ({h.old:.10g}): "
+                      f"set by hand (or by close-loop --in-place); {what} overwrites it (the old file goes to {paths.backups}/)")
+
+
+def commit_product(paths: AircraftPaths, files: Mapping[Path, bytes]):
+    """Replace the product's ``files`` as one unit, backing up the replaced ones."""
+    return commit(files, paths.journal, backup=paths.backups, keep=BACKUPS_KEPT)
+
+
+def write_calibrated(root: Path | str, name: str, factors: FactorSet, stage: str, record: dict) -> ProductWrite:
+    """Write calibrated factors into an aircraft of ``root`` as one unit: the aircraft file
+    (values only: its comments, added functions and formatting stay), the baked propeller and
+    the calibration record. A factor whose value in the file differs from calibration.json
+    (set by hand) is named in a warning before it is overwritten; the replaced files are
+    backed up. A steady-stage result starts a new record (the flight-test stage builds on it
+    and must be rerun)."""
     paths = AircraftPaths(Path(root), name)
+    recover_product(paths)
     factors = rounded(factors)
+    tree = read(paths.aircraft_xml)
+    declared = declared_factors(tree, paths.aircraft_xml)
+    hand = hand_set_factors(declared, read_calibration(paths)) if paths.calibration.is_file() else []
+    warn_hand_set(paths, hand, f"the '{stage}' stage")
+    changes = factor_changes(declared, factors)
     propeller = Propeller(load_aircraft_geometry(paths.root, name), read_bem_csv(paths.propeller_bem), name)
-    files = write_aircraft(paths, factors, aircraft=read(paths.aircraft_xml), propeller=propeller)
-    return files + [write_calibration_record(paths, factors, stage, record)]
+    files = {paths.aircraft_xml: aircraft_bytes(tree, factors, indent_file=False,
+                                                calibration=calibration_digest(factors)),
+             paths.propeller_xml: propeller_bytes(paths, propeller, factors),
+             paths.calibration: calibration_record_bytes(paths, factors, stage, record)}
+    done = commit_product(paths, files)
+    return ProductWrite(list(files), changes, [h.name for h in hand], done.backup)
+
+
+def check_consistent(paths: AircraftPaths, aircraft: Tree) -> None:
+    """Refuse an aircraft file written from other calibration values than calibration.json
+    holds: files of different writes (e.g. one restored or copied by hand, or a write
+    interrupted before writes were journaled). Values set by hand in the file are allowed."""
+    written_from = generator_record(aircraft).get("calibration")
+    if not written_from or not paths.calibration.is_file():
+        return
+    recorded = read_calibration(paths)
+    if calibration_digest(recorded) == written_from:
+        return
+    declared = declared_factors(aircraft, paths.aircraft_xml)
+    differ = hand_set_factors(declared, recorded)
+    listed = "; ".join(f"{d.name}: aircraft file {d.new:.10g}, calibration.json {d.old:.10g}" for d in differ[:8])
+    raise ModelError(f"{paths.aircraft_xml} was written with other calibration values than {paths.calibration} "
+                     f"holds: the files are from different writes ({listed or 'values restored by hand'}). "
+                     f"Restore a consistent set from {paths.backups}/ or rewrite the aircraft from calibration.json "
+                     f"with 'jsbsim-calib generate {paths.name}'")
 
 
 def write_derived(source: AircraftPaths, aircraft: Tree, factors: FactorSet, destination: AircraftPaths) -> Path:
     """Write ``aircraft`` (a variant of ``source``, e.g. with effects added) as ``destination``:
-    the source's folder copied (its geometry and BEM tables; not its XML or calibration
-    record), the aircraft file written with ``factors``. It flies on the source's engine and
-    propeller files, which its XML names."""
+    the source's folder copied (its geometry and BEM tables; not its XML, calibration record or
+    backups), the aircraft file written with ``factors``. It flies on the source's engine and
+    propeller files, which its XML names. The record's body digest is recomputed unless the
+    source file carries hand edits (they stay visible as such)."""
+    clean = source.aircraft_xml.is_file() and hand_edited(read(source.aircraft_xml)) is False
     if destination.folder.resolve() != source.folder.resolve():
         destination.folder.mkdir(parents=True, exist_ok=True)
         for f in source.folder.iterdir():
-            if f.is_file() and f.suffix != ".xml" and f.name != "calibration.json":
+            if f.is_file() and f.suffix != ".xml" and f.name not in ("calibration.json", JOURNAL):
                 shutil.copy(f, destination.folder / f.name)
-    write_aircraft(destination, factors, aircraft=aircraft,
+    write_aircraft(destination, factors, aircraft=aircraft, stamp_body=clean,
                    effect_values={f.property: factors[n] for n, f in factors.extra.items()})
     return destination.aircraft_xml

@@ -3,11 +3,13 @@ propeller factors baked in (JSBSim reads its tables at load time); the baked val
 recorded in the propeller file, where :func:`read_baked_factors` finds them."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 
+from ..errors import AircraftFileError, Problem
 from ..factors import FactorSet
 from ..physics.engine import MIXTURE_FAR, PistonParams, mixture_efficiency
 from ..physics.geometry import AircraftGeometry, PropellerSpec
@@ -93,14 +95,24 @@ def propeller_tree(geom: AircraftGeometry, base: PropellerTables, factors: Facto
 
 
 def read_baked_factors(propeller_xml_path: Path) -> dict[str, float]:
-    """Propeller factors recorded in a propeller file's 'calibration (baked)' comment."""
+    """Propeller factors recorded in a propeller file's 'calibration (baked)' comment;
+    :class:`AircraftFileError` naming the file and line when a value is not a finite number."""
     for c in comments(read(propeller_xml_path).getroot()):
         text = (c.text or "").strip()
         if text.startswith(BAKED_NOTE):
-            out = {}
+            out, problems = {}, []
             for part in text.split(":", 1)[1].split(","):
-                if "=" in part:
-                    k, v = part.split("=")
+                k, _, v = part.partition("=")
+                if not _:
+                    continue
+                try:
                     out[k.strip()] = float(v)
+                except ValueError:
+                    out[k.strip()] = math.nan
+                if not math.isfinite(out[k.strip()]):
+                    problems.append(Problem(f"line {c.sourceline}, {BAKED_NOTE} {k.strip()}",
+                                            f"{v.strip()!r} is not a finite number"))
+            if problems:
+                raise AircraftFileError(propeller_xml_path, problems)
             return out
     return {}

@@ -11,7 +11,6 @@ Use it in a ``with`` block: the sandbox is removed when the block ends, also on 
 from __future__ import annotations
 
 import shutil
-import tempfile
 from pathlib import Path
 from typing import Mapping
 
@@ -20,11 +19,13 @@ import jsbsim
 from ..errors import ModelError
 from ..factors import PROPELLER_FACTORS, REGISTRY, FactorSet
 from ..physics.mass import loading
+from ..tempdirs import make_dir
 from . import trim as trim_solver
-from .aircraft import (add_effect, add_trim_aid, effect_constants, effect_property_values, effect_values,
-                       read_factors, set_effect_values, set_factor_values)
+from .aircraft import (add_effect, add_trim_aid, declared_factors, effect_constants, effect_property_values,
+                       effect_values, set_effect_values, set_factor_values)
 from .condition import Condition, TrimResult
-from .product import AircraftPaths, Propeller, load_aircraft_geometry, read_bem_csv, write_aircraft
+from .product import (AircraftPaths, Propeller, check_consistent, load_aircraft_geometry, read_bem_csv,
+                      recover_product, write_aircraft)
 from .propulsion import read_baked_factors
 from .xml import Tree, copy, parse, read, tostring, tree
 
@@ -42,14 +43,20 @@ class Simulator:
         self.root = Path(root).resolve()
         self.paths = AircraftPaths(self.root, name)
         self.name = name
+        recover_product(self.paths)                 # a write killed half way: finished or rolled back
         if not self.paths.aircraft_xml.is_file():
             raise ModelError(f"{self.paths.aircraft_xml} not found: run 'jsbsim-calib generate {name}'")
         self.geometry = load_aircraft_geometry(self.root, name)
         self.bem = read_bem_csv(self.paths.propeller_bem)
-        declared = read_factors(self.paths.aircraft_xml)
+        on_disk = read(self.paths.aircraft_xml)
+        declared = FactorSet(declared_factors(on_disk, self.paths.aircraft_xml))
+        check_consistent(self.paths, on_disk)
         self._check_baked(declared)
+        if not self.paths.engine_xml.is_file():
+            raise ModelError(f"{self.paths.engine_xml} not found: run 'jsbsim-calib generate {name}'")
+        read(self.paths.engine_xml)                  # a broken engine file named here, not by JSBSim's loader
         self.factors = FactorSet() if baseline else (factors if factors is not None else declared)
-        self._box = Path(tempfile.mkdtemp(prefix="jsbsim-calib-"))
+        self._box = make_dir("jsbsim-calib-")
         try:
             (self._box / "aircraft" / name).mkdir(parents=True)
             (self._box / "engine").mkdir()
@@ -77,7 +84,7 @@ class Simulator:
         d = Path(aircraft_dir).resolve()
         if d.parent.name == "aircraft" and (d.parent.parent / "engine").is_dir():
             return cls(d.parent.parent, d.name, **kw)
-        stage = Path(tempfile.mkdtemp(prefix="jsbsim-calib-root-"))
+        stage = make_dir("jsbsim-calib-root-")
         try:
             (stage / "aircraft").mkdir()
             (stage / "aircraft" / d.name).symlink_to(d, target_is_directory=True)

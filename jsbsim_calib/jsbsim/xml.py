@@ -165,10 +165,20 @@ def function(parent, name: str, description: str, expression: Element) -> Elemen
 
 
 # --------------------------------------------------------------------------- files
-def tostring(tree: Tree) -> bytes:
-    """The bytes of a file: two-space indentation, XML declaration, UTF-8."""
+def indent(tree: Tree) -> None:
+    """Two-space indentation, as :func:`tostring` writes it (to hash a tree before writing it)."""
     etree.indent(tree, space="  ")
-    return etree.tostring(tree, pretty_print=True, xml_declaration=True, encoding="UTF-8")
+
+
+def tostring(tree: Tree, indent: bool = True) -> bytes:
+    """The bytes of a file: XML declaration, UTF-8; two-space indentation (``indent``), or the
+    tree's own whitespace kept as it was read (``indent=False``: a hand-formatted file keeps
+    its formatting; a file this module wrote with indentation gives the same bytes)."""
+    if indent:
+        etree.indent(tree, space="  ")
+        return etree.tostring(tree, pretty_print=True, xml_declaration=True, encoding="UTF-8")
+    data = etree.tostring(tree, pretty_print=False, xml_declaration=True, encoding="UTF-8")
+    return data if data.endswith(b"\n") else data + b"\n"
 
 
 def write_bytes(path: Path, data: bytes) -> None:
@@ -187,8 +197,9 @@ def write_bytes(path: Path, data: bytes) -> None:
             tmp.unlink()
 
 
-def write(tree: Tree, path: Path) -> None:
-    write_bytes(path, tostring(tree))
+def write(tree: Tree, path: Path, indent: bool = True) -> None:
+    """Write a parsed file atomically; ``indent=False`` keeps its whitespace (:func:`tostring`)."""
+    write_bytes(path, tostring(tree, indent))
 
 
 def read(path: Path) -> Tree:

@@ -425,8 +425,8 @@ def available_airfoils(search_dirs: Sequence[Path]) -> list[str]:
     return sorted(names)
 
 
-def load_airfoil(name: str, search_dirs: Sequence[Path]) -> Airfoil:
-    """Read ``<dir>/<name>.csv`` from the first of ``search_dirs`` that has it.
+def airfoil_path(name: str, search_dirs: Sequence[Path]) -> Path:
+    """``<dir>/<name>.csv`` of the first of ``search_dirs`` that has it.
 
     An unknown name raises :class:`GeometryError` naming it and listing the available ones.
     """
@@ -436,12 +436,17 @@ def load_airfoil(name: str, search_dirs: Sequence[Path]) -> Airfoil:
         for d in dirs:
             candidate = d / f"{key}.csv"
             if candidate.is_file():
-                return read_airfoil_csv(candidate)
+                return candidate
     available = available_airfoils(dirs)
     listed = ", ".join(available) if available else "none"
     searched = ", ".join(str(d) for d in dirs) if dirs else "no folders given"
     raise GeometryError(f"airfoil {name!r}", [Problem(
         "airfoil", f"unknown airfoil {name!r}; available airfoils: {listed} (searched {searched})")])
+
+
+def load_airfoil(name: str, search_dirs: Sequence[Path]) -> Airfoil:
+    """Read ``<dir>/<name>.csv`` from the first of ``search_dirs`` that has it (:func:`airfoil_path`)."""
+    return read_airfoil_csv(airfoil_path(name, search_dirs))
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,0 +1,207 @@
+"""The product's files replaced as one unit (jsbsim_calib.commit): a write killed half way
+leaves the old set or the new one after recover(); hand edits of a generated aircraft are
+refused unless --force, which keeps a backup; temporary sandboxes do not outlive their run.
+Real files, real generate, real processes killed."""
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from jsbsim_calib import commit as commit_mod
+from jsbsim_calib.cli import main
+from jsbsim_calib.commit import commit, recover
+from jsbsim_calib.factors import FactorSet
+from jsbsim_calib.generate import build
+from jsbsim_calib.jsbsim.product import AircraftPaths, recover_product
+from jsbsim_calib.jsbsim.simulator import Simulator
+from jsbsim_calib.tempdirs import PREFIX, sweep_stale
+
+
+def copy_root(src: Path, dst: Path) -> Path:
+    dst.mkdir(parents=True)
+    for d in ("aircraft", "engine", "scripts"):
+        shutil.copytree(src / d, dst / d, ignore=shutil.ignore_patterns("backup"))
+    for d in ("airfoils", "data"):
+        (dst / d).symlink_to(src / d, target_is_directory=True)
+    return dst
+
+
+def leftovers(folder: Path) -> list[Path]:
+    return [p for p in folder.rglob(f"*{commit_mod.TMP_MARK}*")]
+
+
+def failing_replace(monkeypatch, fail_at: int, exc=OSError):
+    """os.replace as the commit sees it, raising on call ``fail_at`` (1: the journal's rename,
+    which decides the commit; 2: the first target's)."""
+    calls = []
+    real = os.replace
+
+    def replace(a, b):
+        calls.append(b)
+        if len(calls) == fail_at:
+            raise exc(f"simulated failure renaming onto {b}")
+        real(a, b)
+    monkeypatch.setattr(commit_mod.os, "replace", replace)
+    return calls
+
+
+@pytest.fixture
+def three(tmp_path):
+    files = {tmp_path / n: f"old {n}\n".encode() for n in ("a.xml", "b.xml", "c.json")}
+    for p, d in files.items():
+        p.write_bytes(d)
+    return files, {p: d.replace(b"old", b"new") for p, d in files.items()}, tmp_path / ".journal.json"
+
+
+def state(files) -> set[bytes]:
+    return {p.read_bytes().split()[0] for p in files}
+
+
+def test_failure_after_the_first_rename_is_finished_by_recover(three, monkeypatch):
+    old, new, journal = three
+    failing_replace(monkeypatch, 3)
+    with pytest.raises(OSError, match="simulated"):
+        commit(new, journal, backup=journal.parent / "backup")
+    monkeypatch.undo()
+    assert state(old) == {b"old", b"new"} and journal.is_file()         # a mix until recovered
+    assert recover(journal, list(old)) == "finished"
+    assert {p: p.read_bytes() for p in old} == new
+    assert not journal.exists() and not leftovers(journal.parent)
+    assert {p.name: p.read_bytes() for p in (journal.parent / "backup" / "1").iterdir()} == \
+        {p.name: d for p, d in old.items()}
+
+
+def test_failure_before_the_journal_leaves_the_old_set(three, monkeypatch):
+    old, new, journal = three
+    failing_replace(monkeypatch, 1)
+    with pytest.raises(OSError, match="simulated"):
+        commit(new, journal)
+    monkeypatch.undo()
+    assert {p: p.read_bytes() for p in old} == old
+    assert not journal.exists() and not leftovers(journal.parent)
+    assert recover(journal, list(old)) is None
+
+
+def test_backups_keep_the_last_few(three):
+    old, new, journal = three
+    for k in range(5):
+        commit({p: d + str(k).encode() for p, d in new.items()}, journal, backup=journal.parent / "backup", keep=3)
+    assert sorted(d.name for d in (journal.parent / "backup").iterdir()) == ["3", "4", "5"]
+    assert (journal.parent / "backup" / "5" / "a.xml").read_bytes() == b"new a.xml\n3"
+
+
+KILLER = """
+import os, signal, sys
+from pathlib import Path
+import jsbsim_calib.commit as c
+from jsbsim_calib.generate import generate
+calls, real = [], os.replace
+def replace(a, b):
+    calls.append(b)
+    if len(calls) == {kill_at}:
+        os.kill(os.getpid(), signal.SIGKILL)
+    real(a, b)
+c.os.replace = replace
+generate("c172", Path(sys.argv[1]), baseline=True)
+"""
+
+
+@pytest.mark.parametrize("kill_at, expect", [(1, "old"), (3, "new")])
+def test_generate_killed_mid_commit_leaves_old_or_new_set(generated_root, tmp_path, kill_at, expect):
+    """A real process killed (SIGKILL) while `generate --baseline` replaces a calibrated c172:
+    before its journal is in place (old set) or after the aircraft file's rename (new set)."""
+    root = copy_root(generated_root, tmp_path / "root")
+    paths = AircraftPaths(root, "c172")
+    old = {p: p.read_bytes() for p in paths.product_files if p.is_file()}
+    r = subprocess.run([sys.executable, "-c", KILLER.format(kill_at=kill_at), str(root)], capture_output=True)
+    assert r.returncode == -signal.SIGKILL, r.stderr.decode()[-2000:]
+    now = {p: p.read_bytes() for p in old}
+    if expect == "new":
+        assert now[paths.aircraft_xml] != old[paths.aircraft_xml]       # renamed before the kill ...
+        assert now[paths.propeller_xml] == old[paths.propeller_xml]     # ... this one not: a mix
+        assert recover_product(paths) == "finished"
+    else:
+        assert now == old
+        assert recover_product(paths) == "rolled back"
+    assert not leftovers(root) and not paths.journal.exists()
+    want = old if expect == "old" else {**old, **{Path(p): d for p, d in build("c172", root, baseline=True).files.items()}}
+    assert {p: p.read_bytes() for p in old} == want
+    with Simulator(root, "c172") as sim:                               # the set loads and is consistent
+        assert (sim.factors == FactorSet()) == (expect == "new") and sim.new_exec().load_model("c172")
+
+
+def _edit(path: Path, old: str, new: str) -> None:
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
+
+
+def test_hand_edit_refused_then_forced_with_a_backup(generated_root, tmp_path, capsys):
+    root = copy_root(generated_root, tmp_path / "root")
+    paths = AircraftPaths(root, "c172")
+    _edit(paths.aircraft_xml, "</metrics>", "  <!-- my note -->\n    <location name=\"EYEPOINT\" unit=\"IN\">"
+          " <x> 37 </x> <y> -14 </y> <z> 42 </z> </location>\n  </metrics>")
+    edited = paths.aircraft_xml.read_bytes()
+    assert main(["--root", str(root), "--quiet", "generate", "c172"]) == 2
+    err = capsys.readouterr().err
+    assert "edited by hand" in err and "my note" in err and "EYEPOINT" in err and "--force" in err, err
+    assert "Traceback" not in err
+    assert paths.aircraft_xml.read_bytes() == edited and not paths.backups.exists()
+
+    assert main(["--root", str(root), "--quiet", "generate", "c172", "--force"]) == 0
+    out = capsys.readouterr()
+    assert "dropped" in out.err and "EYEPOINT" in out.err
+    backup = paths.backups / "1"
+    assert f"backup of the replaced files: {backup}" in out.out
+    assert (backup / "c172.xml").read_bytes() == edited
+    assert paths.aircraft_xml.read_bytes() == (generated_root / "aircraft" / "c172" / "c172.xml").read_bytes()
+    assert main(["--root", str(root), "--quiet", "generate", "c172"]) == 0       # no longer a hand edit
+
+
+def test_a_calibration_value_set_by_hand_is_no_hand_edit(generated_root, tmp_path, capsys):
+    """Values are the calibration's to change: generate rewrites them from calibration.json
+    (naming the factor) without --force."""
+    root = copy_root(generated_root, tmp_path / "root")
+    paths = AircraftPaths(root, "c172")
+    text = paths.aircraft_xml.read_text()
+    start = text.index("> calibration/K_cdi <")
+    value_at = text.rindex('value="', 0, start) + len('value="')
+    paths.aircraft_xml.write_text(text[:value_at] + "1.1" + text[text.index('"', value_at):])
+    assert main(["--root", str(root), "--quiet", "generate", "c172"]) == 0
+    assert "K_cdi = 1.1 differs from calibration.json" in capsys.readouterr().err
+    assert paths.aircraft_xml.read_bytes() == (generated_root / "aircraft" / "c172" / "c172.xml").read_bytes()
+
+
+SANDBOX = """
+import os, signal, sys
+from pathlib import Path
+from jsbsim_calib.jsbsim.simulator import Simulator
+sim = Simulator(Path(sys.argv[1]), "c172")          # never closed
+print(sim._box, flush=True)
+if sys.argv[2] == "kill":
+    os.kill(os.getpid(), signal.SIGKILL)
+raise SystemExit(3)
+"""
+
+
+@pytest.mark.parametrize("how", ["exit", "kill"])
+def test_sandboxes_do_not_outlive_their_run(generated_root, tmp_path, how):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    r = subprocess.run([sys.executable, "-c", SANDBOX, str(generated_root), how], capture_output=True, text=True,
+                       env={**os.environ, "TMPDIR": str(tmp)})
+    box = Path(r.stdout.strip())
+    assert box.is_relative_to(tmp), r.stderr[-2000:]
+    if how == "exit":
+        assert r.returncode == 3 and not list(tmp.iterdir())
+    else:
+        assert r.returncode == -signal.SIGKILL and box.is_dir()     # no exit handler ran ...
+        assert [d.name for d in sweep_stale(tmp)] == [box.parent.name]  # ... the next run sweeps it
+        assert box.parent.name.startswith(PREFIX) and not list(tmp.iterdir())
