@@ -605,8 +605,6 @@ def path_problems(a) -> list[Problem]:
         out += _input_file("--data", a.data)
     if a.command == "synth":
         out += _output_folder("--out", a.out) if a.plan else _output_file("--out", a.out)
-        if a.plan and a.plan != "level5":
-            out += _input_file("--plan", a.plan)
         if not Path(a.truth).is_dir():
             out.append(Problem("--truth", f"{a.truth}: not an aircraft folder"))
     if a.command in ("close-loop", "part60"):
