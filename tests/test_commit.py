@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+from contextlib import nullcontext
 from pathlib import Path
 
 import pytest
@@ -22,6 +23,8 @@ from jsbsim_calib.generate import build
 from jsbsim_calib.jsbsim.product import AircraftPaths, recover_product
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.tempdirs import PREFIX, sweep_stale
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def copy_root(src: Path, dst: Path) -> Path:
@@ -205,3 +208,80 @@ def test_sandboxes_do_not_outlive_their_run(generated_root, tmp_path, how):
         assert r.returncode == -signal.SIGKILL and box.is_dir()     # no exit handler ran ...
         assert [d.name for d in sweep_stale(tmp)] == [box.parent.name]  # ... the next run sweeps it
         assert box.parent.name.startswith(PREFIX) and not list(tmp.iterdir())
+
+
+CALIBRATION_KILLER = """
+import os, signal, sys
+import jsbsim_calib.commit as c
+from jsbsim_calib.cli import main
+from pathlib import Path
+WRITES = (".commit-journal.json", "c172.xml", "c172_propeller.xml", "calibration.json")
+calls, real = [], os.replace
+def replace(a, b):
+    if Path(b).name in WRITES and str(b).startswith(sys.argv[1]):   # the product's renames, not the sandbox's
+        calls.append(b)
+        if len(calls) == {kill_at}:
+            os.killpg(0, signal.SIGKILL)
+    real(a, b)
+c.os.replace = replace
+main(["--root", sys.argv[1], "--quiet", "--executor", "serial", "calibrate", "c172", "--stage", "dynamic",
+      "--report-dir", sys.argv[2]])
+"""
+
+
+def _calibrate_dynamic(root: Path, reports: Path) -> None:
+    assert main(["--root", str(root), "--quiet", "--executor", "serial", "calibrate", "c172", "--stage", "dynamic",
+                 "--report-dir", str(reports)]) == 0
+
+
+@pytest.mark.parametrize("kill_at", [1, 2, 3])
+def test_calibration_killed_at_each_write_leaves_a_consistent_aircraft(tmp_path, kill_at):
+    """`calibrate c172 --stage dynamic` (the committed C172) killed (SIGKILL) at each rename of
+    its write: the journal's (1), then each product file that changes (2: aircraft, 3:
+    calibration.json; the baked propeller holds its new bytes already and is not rewritten). The
+    next reader finds the old set (1) or the new one (2, 3), never a mix; the aircraft loads."""
+    root = copy_root(REPO, tmp_path / "root")
+    paths = AircraftPaths(root, "c172")
+    old = {p: p.read_bytes() for p in paths.product_files if p.is_file()}
+    r = subprocess.run([sys.executable, "-c", CALIBRATION_KILLER.format(kill_at=kill_at), str(root),
+                        str(tmp_path / "reports")], capture_output=True, start_new_session=True)
+    assert r.returncode == -signal.SIGKILL, r.stderr.decode()[-2000:]
+    with pytest.warns(UserWarning, match="interrupted write") if kill_at > 1 else nullcontext():
+        assert recover_product(paths) == ("rolled back" if kill_at == 1 else "finished")
+    now = {p: p.read_bytes() for p in old}
+    assert not leftovers(root) and not paths.journal.exists()
+    if kill_at == 1:
+        assert now == old
+    else:                                  # the files of the write, all new; the rest untouched
+        written = {paths.aircraft_xml, paths.calibration}
+        assert all(now[p] != old[p] for p in written) and all(now[p] == old[p] for p in old if p not in written)
+    with Simulator(root, "c172") as sim:   # refuses files of different writes (check_consistent)
+        assert sim.new_exec().load_model("c172")
+
+
+def test_hand_edits_survive_calibrate_and_generate(tmp_path, capsys):
+    """A comment and a function added by hand and a factor changed by hand: `calibrate` keeps
+    the comment and the function and names the factor it overwrites (backup kept); `generate`
+    then refuses, listing the lines it would drop, and leaves the file as it was."""
+    root = copy_root(REPO, tmp_path / "root")
+    paths = AircraftPaths(root, "c172")
+    _edit(paths.aircraft_xml, "</metrics>", "  <!-- my hand note -->\n  </metrics>")
+    _edit(paths.aircraft_xml, "<aerodynamics>", "<aerodynamics>\n    <function name=\"aero/my-hand-term\">"
+          " <product> <property>aero/qbar-psf</property> <value>0.0</value> </product> </function>")
+    text = paths.aircraft_xml.read_text()
+    value_at = text.rindex('value="', 0, text.index("> calibration/K_cdi <")) + len('value="')
+    paths.aircraft_xml.write_text(text[:value_at] + "1.1" + text[text.index('"', value_at):])
+
+    _calibrate_dynamic(root, tmp_path / "reports")
+    err = capsys.readouterr().err
+    assert "K_cdi = 1.1 differs from calibration.json" in err, err
+    after = paths.aircraft_xml.read_text()
+    assert "<!-- my hand note -->" in after and 'name="aero/my-hand-term"' in after
+    assert (paths.backups / "1" / "c172.xml").read_text().count("my-hand-term") == 1
+
+    assert main(["--root", str(root), "--quiet", "generate", "c172"]) == 2
+    err = capsys.readouterr().err
+    assert "would drop" in err and "my hand note" in err and "my-hand-term" in err and "Traceback" not in err
+    assert paths.aircraft_xml.read_text() == after
+    with Simulator(root, "c172") as sim:
+        assert sim.new_exec().load_model("c172")
