@@ -448,40 +448,8 @@ def _export_regress_parsers(sub) -> None:
     r.set_defaults(func=cmd_regress)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="jsbsim-calib", description="Build and calibrate general-aviation JSBSim aircraft.")
-    p.add_argument("--root", default=".", help="JSBSim root (holds aircraft/, engine/, data/); default: current dir")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
-    p.add_argument("--executor", choices=("serial", "process", "dask"), default="process",
-                   help="where independent work runs (a fit's Jacobian columns ...): process pool (default), this "
-                        "process, or a dask.distributed cluster; the results are the same bits on each")
-    p.add_argument("--workers", type=int, metavar="N",
-                   help="worker processes (process pool, local dask cluster); default: one per core")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="dask scheduler address (tcp://host:8786) for --executor dask; default: a local cluster")
-    sub = p.add_subparsers(dest="command", required=True)
-
-    g = sub.add_parser("generate", help="regenerate an aircraft's JSBSim files from aircraft/NAME/geometry.toml")
-    g.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
-    g.add_argument("--baseline", action="store_true", help="write neutral factors (ignore calibration.json)")
-    g.add_argument("--force", action="store_true",
-                   help="overwrite an aircraft file edited by hand (the lines dropped are listed; a backup is kept)")
-    g.set_defaults(func=cmd_generate)
-
-    c = sub.add_parser("calibrate", help="run a calibration stage and write the calibrated aircraft")
-    c.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
-    c.add_argument("--stage", required=True, choices=("steady", "trims", "dynamic", "all"),
-                   help="steady: POH climb/cruise (stage 1, resets later stages); trims: flight-test trims "
-                        "(stage 2a, from the aircraft's stage-1 factors); dynamic: damping and pitch axis on the "
-                        "dynamic tests (stage 2b, from the current factors); all: the three in order")
-    c.add_argument("--start", choices=("neutral", "current"), default="neutral",
-                   help="start from neutral factors (default, reproducible) or the current calibration")
-    c.add_argument("--skip", action="append", metavar="STEP",
-                   help="trims stage: leave out a step (pitch, control, pfactor, flaps); repeatable")
-    c.add_argument("--no-write", action="store_true", help="do not write the aircraft files")
-    c.add_argument("--report-dir", default="reports", help="where reports go (default reports/)")
-    c.set_defaults(func=cmd_calibrate)
-
+def _analysis_parsers(sub) -> None:
+    """evaluate, validate, synth and close-loop: the commands that compare the model with data."""
     e = sub.add_parser("evaluate", help="compare the model with a data file (POH, flight test, G1000 log)")
     e.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
     e.add_argument("--data", required=True,
@@ -538,6 +506,43 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--no-write", action="store_true", help="write no aircraft")
     o.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
     o.set_defaults(func=cmd_close_loop)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="jsbsim-calib", description="Build and calibrate general-aviation JSBSim aircraft.")
+    p.add_argument("--root", default=".", help="JSBSim root (holds aircraft/, engine/, data/); default: current dir")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--executor", choices=("serial", "process", "dask"), default="process",
+                   help="where independent work runs (a fit's Jacobian columns ...): process pool (default), this "
+                        "process, or a dask.distributed cluster; the results are the same bits on each")
+    p.add_argument("--workers", type=int, metavar="N",
+                   help="worker processes (process pool, local dask cluster); default: one per core")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="dask scheduler address (tcp://host:8786) for --executor dask; default: a local cluster")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    g = sub.add_parser("generate", help="regenerate an aircraft's JSBSim files from aircraft/NAME/geometry.toml")
+    g.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    g.add_argument("--baseline", action="store_true", help="write neutral factors (ignore calibration.json)")
+    g.add_argument("--force", action="store_true",
+                   help="overwrite an aircraft file edited by hand (the lines dropped are listed; a backup is kept)")
+    g.set_defaults(func=cmd_generate)
+
+    c = sub.add_parser("calibrate", help="run a calibration stage and write the calibrated aircraft")
+    c.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    c.add_argument("--stage", required=True, choices=("steady", "trims", "dynamic", "all"),
+                   help="steady: POH climb/cruise (stage 1, resets later stages); trims: flight-test trims "
+                        "(stage 2a, from the aircraft's stage-1 factors); dynamic: damping and pitch axis on the "
+                        "dynamic tests (stage 2b, from the current factors); all: the three in order")
+    c.add_argument("--start", choices=("neutral", "current"), default="neutral",
+                   help="start from neutral factors (default, reproducible) or the current calibration")
+    c.add_argument("--skip", action="append", metavar="STEP",
+                   help="trims stage: leave out a step (pitch, control, pfactor, flaps); repeatable")
+    c.add_argument("--no-write", action="store_true", help="do not write the aircraft files")
+    c.add_argument("--report-dir", default="reports", help="where reports go (default reports/)")
+    c.set_defaults(func=cmd_calibrate)
+
+    _analysis_parsers(sub)
 
     k = sub.add_parser("check", help="plausibility: lift slope, stall speed, stability and damping derivatives")
     k.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
