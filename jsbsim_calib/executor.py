@@ -68,7 +68,13 @@ class Executor:
     workers = 1
 
     def map(self, fn: Callable[[Any], Any], items: Sequence, key: str | None = None) -> list:
-        return [fn(i) for i in items]
+        """In this process, as a worker would: a keyed function runs on its own unpickled copy
+        (made once per key), so the caller's simulator keeps its state (its warm starts, its
+        loaded JSBSim) and the results are the pool's bits."""
+        if key is None:
+            return [fn(i) for i in items]
+        payload = None if key in _CACHE else cloudpickle.dumps(fn)
+        return [_call(key, payload, i) for i in items]
 
     def close(self) -> None:
         pass
@@ -118,7 +124,7 @@ class ProcessExecutor(Executor):
 
     def map(self, fn, items, key=None):
         if self.workers == 1 or len(items) <= 1:
-            return [fn(i) for i in items]
+            return super().map(fn, items, key)
         digest, payload = self._payloads.get(fn, key)
         path = self._dir / f"{digest}.pkl"          # the workers read it once; the tasks carry its path
         if not path.exists():
@@ -154,7 +160,7 @@ class DaskExecutor(Executor):
 
     def map(self, fn, items, key=None):
         if len(items) <= 1:
-            return [fn(i) for i in items]
+            return super().map(fn, items, key)
         digest, payload = self._payloads.get(fn, key)
         if digest not in self._scattered:           # sent to every worker once
             self._scattered = {digest: self._client.scatter(payload, broadcast=True)}

@@ -88,6 +88,18 @@ def test_dynamic_tests_fly_the_same_on_a_pool():
     assert [m.model for m in a.metric_results()] == [m.model for m in b.metric_results()]
 
 
+def test_flying_the_dynamic_tests_here_keeps_the_callers_warm_starts():
+    """Evaluating the dynamic tests in this process (SERIAL) leaves the simulator's trim warm
+    starts as they were, as on a pool (whose workers fly copies): a fit that follows starts
+    from the same warm starts on every executor (it did not, and stage 2b landed 1e-10 apart)."""
+    tests = dynamic_tests(REPO, "c172")[:1]
+    with Simulator(REPO, "c172") as sim:
+        sim.trim(A, key="A")
+        before = {k: (x.tobytes(), np.asarray(J).tobytes()) for k, (x, J) in sim.trim_cache.items()}
+        evaluate_dynamic(sim, tests)
+        assert before and {k: (x.tobytes(), np.asarray(J).tobytes()) for k, (x, J) in sim.trim_cache.items()} == before
+
+
 def test_unknown_executor_is_refused():
     with pytest.raises(CalibError, match="unknown executor"):
         make_executor("threads")
