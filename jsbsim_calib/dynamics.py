@@ -251,12 +251,9 @@ class _FlyFresh:
         self.sim, self.rate_hz = sim, rate_hz
 
     def __call__(self, test: DynamicTest) -> TestResult:
-        warm, self.sim.trim_cache = self.sim.trim_cache, {}
-        try:                               # in this process the caller's warm starts stay as they were
-            self.sim.fresh()
-            return fly_test(self.sim, test, rate_hz=self.rate_hz)
-        finally:
-            self.sim.trim_cache = warm
+        self.sim.fresh()
+        self.sim.trim_cache = {}
+        return fly_test(self.sim, test, rate_hz=self.rate_hz)
 
 
 def evaluate_dynamic(sim: Simulator, tests: Sequence[DynamicTest], *, rate_hz: float = RATE_HZ,

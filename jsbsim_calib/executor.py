@@ -73,8 +73,8 @@ class Executor:
         loaded JSBSim) and the results are the pool's bits."""
         if key is None:
             return [fn(i) for i in items]
-        payload = None if key in _CACHE else cloudpickle.dumps(fn)
-        return [_call(key, payload, i) for i in items]
+        payload = cloudpickle.dumps(fn)      # by content, as a worker keeps it: a copy is never stale
+        return [_call(hashlib.sha1(payload).hexdigest(), payload, i) for i in items]
 
     def close(self) -> None:
         pass
