@@ -12,7 +12,8 @@ reports, print).
     jsbsim-calib evaluate|check AIRCRAFT --foreign-root DIR|jsbsim [--foreign-aircraft NAME] ...   any JSBSim aircraft
     jsbsim-calib export flightgear AIRCRAFT --out DIR
     jsbsim-calib regress AIRCRAFT --baseline REF.json [--data FILE...] [--share X] | --write-baseline REF.json
-    jsbsim-calib validate AIRCRAFT [--stage steady|trims|all] [--fold NAME] [--report-dir reports]
+    jsbsim-calib validate AIRCRAFT [--stage steady|trims|dynamic|all] [--fold NAME] [--report-dir reports]
+    jsbsim-calib slipstream AIRCRAFT [--stage steady|all] [--variant off|swirl|theory|fitted] [--json OUT]
     jsbsim-calib airfoil NAME
 """
 from __future__ import annotations
@@ -340,25 +341,32 @@ def _log_loading(a, sim, ds):
     return (with_weight_offset(ds, estimate) if a.estimate_weight else ds), estimate
 
 
+STAGE_NUMBERS = {"steady": "1", "trims": "2a", "dynamic": "2b"}
+
+
 def cmd_validate(a) -> int:
     from .calibration.validation import STAGE_DATA_KEYS, fold_names, stage_data, validate_steady, validate_trims
+    from .calibration.validation_dynamic import dynamic_fold_names, validate_dynamic
     from .physics_checks import run_physics_checks
     from .report.validation import format_physics, format_validation, write_validation_report
     root, say, t0 = Path(a.root), _progress(a.quiet), time.perf_counter()
     geom = load_aircraft_geometry(root, a.aircraft)
-    stages = ("steady", "trims") if a.stage == "all" else (a.stage,)
-    if a.stage == "all" and not all(k in geom.data_files for k in STAGE_DATA_KEYS["trims"]):
-        stages = ("steady",)
-        print(f"{a.aircraft}: no flight-test data, stage 2a not validated")
+    stages = ("steady", "trims", "dynamic") if a.stage == "all" else (a.stage,)
+    if a.stage == "all":
+        for st in ("trims", "dynamic"):
+            if not all(k in geom.data_files for k in STAGE_DATA_KEYS[st]):
+                print(f"{a.aircraft}: no {' / '.join(STAGE_DATA_KEYS[st])} data, stage {STAGE_NUMBERS[st]} not validated")
+        stages = tuple(st for st in stages if all(k in geom.data_files for k in STAGE_DATA_KEYS[st]))
     folds = {st: None for st in stages}
     if a.fold:                               # each stage runs the named folds it has
-        names = {st: fold_names(root, a.aircraft, st) for st in stages}
+        names = {st: dynamic_fold_names(root, a.aircraft) if st == "dynamic" else fold_names(root, a.aircraft, st)
+                 for st in stages}
         unknown = [f for f in a.fold if not any(f in n for n in names.values())]
         if unknown:
             raise CalibError(f"unknown fold(s) {', '.join(unknown)}; folds: "
                              + "; ".join(f"{st}: {', '.join(n)}" for st, n in names.items()))
         folds = {st: [f for f in a.fold if f in names[st]] for st in stages if set(a.fold) & set(names[st])}
-    run = {"steady": validate_steady, "trims": validate_trims}
+    run = {"steady": validate_steady, "trims": validate_trims, "dynamic": validate_dynamic}
     kw = {} if a.max_nfev is None else {"max_nfev": a.max_nfev}
     vals = [run[st](root, a.aircraft, folds=f, progress=say, **kw) for st, f in folds.items()]
     for v in vals:
@@ -377,6 +385,28 @@ def cmd_validate(a) -> int:
                       f"{v.trims} trims)" for v in vals)
     extra = "" if physics is None else f", physics checks {physics.wall_time_s:.1f} s"
     print(f"validation wall time {time.perf_counter() - t0:.0f} s: {times}{extra}")
+    return 0
+
+
+def cmd_slipstream(a) -> int:
+    from .factors import SWITCHES
+    from .report.variants import format_comparison, write_comparison_report
+    from .variants import SLIPSTREAM, compare_variants
+    root = Path(a.root)
+    load_aircraft_geometry(root, a.aircraft)
+    chosen = [v for v in SLIPSTREAM if not a.variant or v.name in a.variant]
+    results = compare_variants(root, a.aircraft, chosen, stages=a.stage, progress=_progress(a.quiet),
+                               executor=a.pool)
+    print(format_comparison(a.aircraft, results))
+    product = read_calibration(AircraftPaths(root, a.aircraft))
+    command = f"jsbsim-calib slipstream {a.aircraft}" + ("" if a.stage == "all" else f" --stage {a.stage}")
+    md = write_comparison_report(a.aircraft, results, {k: product[k] for k in SWITCHES},
+                                 Path(a.report_dir) / a.aircraft, command)
+    print(f"report: {md}")
+    if a.json:
+        Path(a.json).write_text(json.dumps({"aircraft": a.aircraft, "variants": [r.to_json() for r in results]},
+                                           indent=2) + "\n")
+        print(f"json: {a.json}")
     return 0
 
 
@@ -471,14 +501,27 @@ def _analysis_parsers(sub) -> None:
     v = sub.add_parser("validate", help="held-out validation of the calibration stages (refits with data left out) "
                                         "and physics checks; writes REPORT_DIR/AIRCRAFT/validation.md")
     v.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
-    v.add_argument("--stage", choices=("steady", "trims", "all"), default="all",
-                   help="steady: stage 1 folds; trims: stage 2a folds; all (default): those the data allow")
+    v.add_argument("--stage", choices=("steady", "trims", "dynamic", "all"), default="all",
+                   help="steady: stage 1 folds; trims: stage 2a folds; dynamic: stage 2b folds; all (default): those "
+                        "the data allow")
     v.add_argument("--fold", action="append", metavar="NAME", help="run only this fold (repeatable; e.g. 'flaps 10')")
     v.add_argument("--max-nfev", dest="max_nfev", type=int, help="evaluations per refit (default 60)")
     v.add_argument("--no-physics", action="store_true", help="skip the physics checks")
     v.add_argument("--json", help="also write the validation results as JSON to this file")
     v.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
     v.set_defaults(func=cmd_validate)
+
+    s = sub.add_parser("slipstream", help="the propeller slipstream off, as the theory gives it, and fitted: each "
+                                          "variant calibrated from neutral on the same data; writes "
+                                          "REPORT_DIR/AIRCRAFT/slipstream.md (nothing else)")
+    s.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    s.add_argument("--stage", choices=("steady", "all"), default="all",
+                   help="steady: stage 1 only; all (default): every stage the aircraft's data allow")
+    s.add_argument("--json", help="also write each variant's factors and figures as JSON to this file")
+    s.add_argument("--variant", action="append", choices=("off", "swirl", "theory", "fitted"),
+                   help="run only this variant (repeatable; default all three)")
+    s.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
+    s.set_defaults(func=cmd_slipstream)
 
     y = sub.add_parser("synth", help="synthetic flight-test snapshots (or, with --plan, time histories) flown by a "
                                      "truth aircraft folder")

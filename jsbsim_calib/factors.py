@@ -157,6 +157,16 @@ FACTORS: tuple[Factor, ...] = (
     _f("K_PF", 0.0, 0.0, 5.0, "-", ("pfactor",), ("rudder_deg", "aileron_deg"),
        "yawing moment N = -K_PF T (D/2) sin(alpha) (eq. 3.38)",
        "P-factor: + nose-left yaw growing with thrust and alpha (right rudder in climbs)"),
+    # not in the method (it names the slipstream as a missing model): the momentum-theory slipstream
+    # of jsbsim_calib.physics.slipstream. Model switches, not fitted by any step (no steps): every
+    # stage keeps the value it starts from. 0 (neutral) leaves it out, 1 is the theory; the
+    # product's choice and why: reports/<aircraft>/slipstream.md (jsbsim-calib slipstream)
+    _f("K_slip", 0.0, 0.0, 2.0, "-", (), ("elevator_deg", "rudder_deg", "pitch_deg"),
+       "slipstream dynamic pressure on the tails and wing root (momentum theory)",
+       "scales the slipstream's extra dynamic pressure: 1 the theory, > 1 more tail and rudder power with thrust"),
+    _f("K_swirl", 0.0, 0.0, 2.0, "-", (), ("rudder_deg", "aileron_deg"),
+       "slipstream swirl at the fin (momentum theory, free vortex)",
+       "scales the swirl's sideslip at the fin: 1 the theory, > 1 more nose-left yaw with power (right rudder)"),
     # --- flaps (Table 3.6, eq. 3.42-3.45)
     _f("K_dcd0_flaps", 0.0, -2.0, 2.0, "-", ("flaps",), ("roc_fpm",),
        "flap strips: profile drag per flap degree (eq. 3.42)",
@@ -192,6 +202,8 @@ FACTORS: tuple[Factor, ...] = (
 
 REGISTRY: dict[str, Factor] = {f.name: f for f in FACTORS}
 PROPELLER_FACTORS = tuple(f.name for f in FACTORS if f.baked)
+# model switches: factors no step fits (the slipstream's); a calibration keeps the aircraft's values
+SWITCHES = tuple(f.name for f in FACTORS if not f.steps)
 
 
 class FactorError(CalibError, ValueError):
@@ -216,6 +228,12 @@ def step_factors(step: str) -> tuple[str, ...]:
         raise FactorError(f"unknown step '{step}'; steps: {', '.join(STEPS)}")
     mine = [f for f in FACTORS if step in f.steps]
     return tuple(f.name for f in sorted(mine, key=lambda f: f.steps.index(step) > 0))
+
+
+def switches(factors: Mapping[str, float]) -> "FactorSet":
+    """Only the model switches of ``factors`` (:data:`SWITCHES`), every other factor neutral:
+    where a calibration from neutral starts on an aircraft whose switches were set by hand."""
+    return FactorSet({k: factors[k] for k in SWITCHES if k in factors})
 
 
 def set_in(steps: Sequence[str]) -> tuple[str, ...]:

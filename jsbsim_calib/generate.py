@@ -40,7 +40,8 @@ from .physics.airfoil import airfoil_path, load_airfoil
 from .physics.engine import PistonParams, design_piston
 from .physics.geometry import AircraftGeometry
 from .physics.mass import empty_inertia
-from .physics.propeller import Blade, PropellerTables, helical_blade, propeller_tables
+from .physics.propeller import Blade, PropellerTables, bem_point, helical_blade, propeller_tables
+from .physics.slipstream import torque_shape
 
 J_GRID = np.round(np.concatenate([np.arange(0.0, 1.0, 0.05), np.arange(1.0, 1.61, 0.1)]), 4)
 BETA_GRID = np.arange(8.0, 44.1, 4.0)
@@ -59,6 +60,21 @@ def blade_for(geom: AircraftGeometry, root: Path) -> Blade:
     pitch = p.pitch_m if p.pitch_m is not None else 2 * math.pi * 0.75 * R * math.tan(math.radians(p.reference_pitch_deg))
     return helical_blade(p.diameter_m, p.blades, pitch, hub_radius_m=p.hub_radius_m, chord_over_R=chord_table,
                          section=section)
+
+
+SWIRL_J = 0.5                 # the climb: the advance ratio the swirl's radial shape is taken at
+SWIRL_ALPHA_DEG = 4.5         # a constant-speed blade's angle of attack at 0.75 R there (the governor's climb pitch)
+
+
+def swirl_torque_shape(geom: AircraftGeometry, root: Path):
+    """The propeller's torque shape in the climb (blade-element solution at J = 0.5; a
+    constant-speed blade at the helix angle + 4.5 deg): what the swirl at the fin follows."""
+    blade = blade_for(geom, root)
+    if geom.propeller.constant_speed:
+        blade = blade.with_beta75(math.degrees(math.atan(SWIRL_J / (0.75 * math.pi))) + SWIRL_ALPHA_DEG)
+    n = BEM_RPM / 60.0
+    pt = bem_point(blade, V_ms=SWIRL_J * n * geom.propeller.diameter_m, rpm=BEM_RPM)
+    return torque_shape(pt.r_over_R, pt.dQ_dr, 0.5 * geom.propeller.diameter_m)
 
 
 def propeller_base_tables(geom: AircraftGeometry, root: Path) -> PropellerTables:
@@ -119,7 +135,8 @@ def build(name: str, root: Path = Path("."), *, factors: FactorSet | None = None
         factors = FactorSet() if baseline else read_calibration(paths)
         if not baseline and paths.calibration.is_file():
             calibration = calibration_digest(factors)
-    aero = build_aero(geom, airfoils, progress=lambda s: say(f"aerodynamics: {s}"))
+    aero = build_aero(geom, airfoils, progress=lambda s: say(f"aerodynamics: {s}"),
+                      torque_shape=swirl_torque_shape(geom, root))
     say("propeller: blade-element momentum")
     # the tables are baked from their stored (rounded) form, as calibration re-bakes them
     bem = parse_bem_csv(bem_csv_text(propeller_base_tables(geom, root)))

@@ -31,7 +31,7 @@ from .dynamics import DynamicEvaluation, evaluate_dynamic
 from .errors import ModelError
 from .executor import SERIAL, Executor
 from .evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
-from .factors import FactorSet
+from .factors import FactorSet, switches
 from .jsbsim.probes import AeroCurves, aero_curves
 from .jsbsim.product import AircraftPaths, load_aircraft_geometry, propeller_tables
 from .jsbsim.simulator import Simulator
@@ -89,13 +89,15 @@ def model_curves(root: Path, name: str, factors: FactorSet) -> tuple[dict[str, A
 def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
                progress: Callable[[str], None] | None = None, executor: Executor = SERIAL) -> SteadyCalibration:
     """Stage 1 on the aircraft's POH data, with baseline and calibrated evaluations
-    (``executor``: where the fits' independent evaluations run; the same results anywhere)."""
+    (``executor``: where the fits' independent evaluations run; the same results anywhere).
+    ``start``: default neutral, with the model switches the aircraft file sets (the slipstream)."""
     root = Path(root)
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     data = aircraft_data(root, name)
     climb, cruise = data["poh_climb"], data["poh_cruise"]
     with Simulator(root, name, baseline=True) as sim:
+        start = switches(sim.declared) if start is None else start
         say(f"baseline: trimming {len(climb) + len(cruise)} POH points")
         baseline = {k: evaluate_dataset(sim, ds, model_kind="baseline") for k, ds in data.items()}
         ci, ki = stage1_subset(climb), stage1_subset(cruise)

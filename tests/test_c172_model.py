@@ -432,6 +432,24 @@ def _k_pf(sim):
     assert abs(c1.rudder_deg - c0.rudder_deg) < abs(r1.rudder_deg - r0.rudder_deg)
 
 
+# the slipstream switches (model physics, not fitted: jsbsim_calib.physics.slipstream)
+@check("K_slip")
+def _k_slip(sim):
+    # more tail power with thrust: the same tail load for less elevator, the wing's lift unchanged
+    c0, c1 = effect(sim, CLIMB, up("K_slip"))
+    k0, k1 = effect(sim, CRUISE, up("K_slip"))
+    assert c1.elevator_deg > c0.elevator_deg + 0.1 and abs(c1.alpha_deg - c0.alpha_deg) < 0.05
+    assert abs(c1.elevator_deg - c0.elevator_deg) > 2.0 * abs(k1.elevator_deg - k0.elevator_deg)
+
+
+@check("K_swirl")
+def _k_swirl(sim):
+    c0, c1 = effect(sim, CLIMB, up("K_swirl"))
+    k0, k1 = effect(sim, CRUISE, up("K_swirl"))
+    assert c1.rudder_deg < c0.rudder_deg - 1.0          # right rudder (trailing edge right, negative)
+    assert abs(c1.rudder_deg - c0.rudder_deg) > 1.5 * abs(k1.rudder_deg - k0.rudder_deg)
+
+
 # flaps
 @check("K_dcd0_flaps")
 def _k_dcd0_flaps(sim):

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..data.schemas import Dataset
 from ..executor import SERIAL, Executor
-from ..factors import FactorSet, set_in, step_factors
+from ..factors import SWITCHES, FactorSet, set_in, step_factors
 from ..jsbsim.simulator import Simulator
 from .fit import MAX_NFEV, FitResult, fit
 from .points import FAIL_PENALTY, PointSet, point_residuals, stage1_subset
@@ -52,6 +52,7 @@ def steady_stage(sim: Simulator, climb: Dataset, cruise: Dataset, *, start: Fact
 
 
 def steady_factors(factors: FactorSet) -> FactorSet:
-    """Stage-1 factors kept, every later factor neutral: where stage 2a starts."""
-    stage1 = set_in(STAGE1_STEPS)
+    """Stage-1 factors and the model switches kept, every later factor neutral: where stage 2a
+    starts."""
+    stage1 = set(set_in(STAGE1_STEPS)) | set(SWITCHES)
     return FactorSet({k: v for k, v in factors.items() if k in stage1})

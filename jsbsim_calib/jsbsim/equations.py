@@ -147,8 +147,9 @@ RUDDER = "fcs/rudder-pos-deg"
 ALPHA_TAIL = "aero/ht/alpha-deg"
 INVERSE_SPEED = ratio(number(1.0), prop("velocities/vt-fps"))
 # the breakpoint axes of the strip model's tables, as JSBSim properties
+TC = "aero/slipstream/tc"
 TABLE_AXES = {"alpha": ALPHA, "shift": SHIFT, "flap": FLAP, "elevator": ELEVATOR, "aileron": AILERON,
-              "rudder": RUDDER, "alpha_h": ALPHA_TAIL}
+              "rudder": RUDDER, "alpha_h": ALPHA_TAIL, "tc": TC}
 
 
 class _Terms:
@@ -216,19 +217,63 @@ def _air(terms: _Terms) -> list[Function]:
     ]
 
 
+def _slipstream(terms: _Terms) -> list[Function]:
+    """Momentum-theory slipstream (jsbsim_calib.physics.slipstream): disc thrust and torque
+    coefficients, the dynamic-pressure gains of the surfaces inside it, the swirl at the fin."""
+    t, c = terms.table, terms.const
+    area_ft2 = c("disc_area") * M2_TO_FT2
+    radius_ft = c("disc_radius") / FT
+    qa = product(largest(prop("aero/qbar-psf"), number(1.0)), number(area_ft2))
+    a = product(number(0.5), difference(power(total(number(1.0), prop(TC)), number(0.5)), number(1.0)))
+    return [
+        Function(TC, "disc thrust coefficient Tc = T / (qbar A_disc), within [0, 20]",
+                 smallest(number(20.0), largest(number(0.0), ratio(prop("propulsion/engine/thrust-lbs"), qa)))),
+        Function("aero/slipstream/qc", "disc torque coefficient Qc = Q / (qbar A_disc R), within [0, 5] (JSBSim's torque is -sense Q)",
+                 smallest(number(5.0), largest(number(0.0), ratio(product(number(-c("prop_sense")),
+                                                                          prop("propulsion/engine/propeller-torque-ftlb")),
+                                                                  product(qa, number(radius_ft)))))),
+        Function("aero/slipstream/a", "axial induction a: Tc = 4 a (1 + a)", a),
+        Function("aero/slipstream/ht-gain", "dynamic-pressure gain of the horizontal tail: 1 + K_slip f_h(Tc) Tc",
+                 total(number(1.0), product(factor("K_slip"), t("slip_ht_fraction"), prop(TC)))),
+        Function("aero/slipstream/fin-gain", "dynamic-pressure gain of the fin: 1 + K_slip f_v(Tc) Tc",
+                 total(number(1.0), product(factor("K_slip"), t("slip_fin_fraction"), prop(TC)))),
+        Function("aero/slipstream/wing-gain", "dynamic-pressure increment of the wing (root strips): K_slip f_w(Tc) Tc",
+                 product(factor("K_slip"), t("slip_wing_fraction"), prop(TC))),
+        Function("aero/slipstream/fin-sideslip-rad", "sideslip the swirl makes at the fin: -sense K_swirl Qc "
+                                                     "R/(2r) / ((1 + a)(1 + 2a))",
+                 product(number(-c("prop_sense")), factor("K_swirl"), prop("aero/slipstream/qc"), t("slip_fin_swirl_arm"),
+                         ratio(number(1.0), product(total(number(1.0), prop("aero/slipstream/a")),
+                                                    total(number(1.0), product(number(2.0),
+                                                                               prop("aero/slipstream/a"))))))),
+    ]
+
+
+def _fin_slipstream(terms: _Terms, coefficient: str) -> Operation:
+    """The fin in the slipstream: its sideslip effect grown by the dynamic-pressure gain, and the
+    swirl's sideslip at the fin: fin_X_beta ((gain - 1) beta + gain beta_swirl)."""
+    gain = prop("aero/slipstream/fin-gain")
+    return product(terms.table(f"vt_{coefficient}_beta"),
+                   total(product(difference(gain, number(1.0)), prop("aero/beta-rad")),
+                         product(gain, prop("aero/slipstream/fin-sideslip-rad"))))
+
+
 def _wing(terms: _Terms) -> list[Function]:
     t, c, m = terms.table, terms.const, terms.model
     return [
-        Function("aero/wing/CL", "wing lift: K_cl_slope (CL_w(alpha, shift) + K_dcl_flaps flaps) + K_cl_offset S_w/S "
-                                 "(eq. 3.6)",
-                 total(product(factor("K_cl_slope"), total(t("wing_CL"), product(factor("K_dcl_flaps"), t("flap_dCL")))),
-                       product(factor("K_cl_offset"), number(c("wing_area_ratio"))))),
-        Function("aero/wing/CD0", "wing profile drag: K_cd0_slope CD0_w Re-factor + K_cd0_offset S_profile/S + flap "
-                                  "increment + K_dcd0_flaps (dCD0/dflap) flap (eq. 3.7, 3.42)",
-                 total(product(factor("K_cd0_slope"), t("wing_CD0"), prop("aero/wing/re-factor")),
-                       product(factor("K_cd0_offset"), number(c("wing_profile_ratio"))),
-                       t("flap_dCD0"),
-                       product(factor("K_dcd0_flaps"), number(c("flap_dcd0_per_deg")), prop(FLAP)))),
+        Function("aero/wing/CL", "wing lift: (K_cl_slope (CL_w(alpha, shift) + K_dcl_flaps flaps) + K_cl_offset "
+                                 "S_w/S) (1 + slipstream increment of the root strips) (eq. 3.6)",
+                 product(total(product(factor("K_cl_slope"),
+                                       total(t("wing_CL"), product(factor("K_dcl_flaps"), t("flap_dCL")))),
+                               product(factor("K_cl_offset"), number(c("wing_area_ratio")))),
+                         total(number(1.0), prop("aero/slipstream/wing-gain")))),
+        Function("aero/wing/CD0", "wing profile drag: (K_cd0_slope CD0_w Re-factor + K_cd0_offset S_profile/S + flap "
+                                  "increment + K_dcd0_flaps (dCD0/dflap) flap) (1 + slipstream increment) (eq. 3.7, "
+                                  "3.42)",
+                 product(total(product(factor("K_cd0_slope"), t("wing_CD0"), prop("aero/wing/re-factor")),
+                               product(factor("K_cd0_offset"), number(c("wing_profile_ratio"))),
+                               t("flap_dCD0"),
+                               product(factor("K_dcd0_flaps"), number(c("flap_dcd0_per_deg")), prop(FLAP))),
+                         total(number(1.0), prop("aero/slipstream/wing-gain")))),
         Function("aero/wing/CDi", "wing induced drag: K_cdi (CDi_w + flap increment) (eq. 3.9)",
                  product(factor("K_cdi"), total(t("wing_CDi"), t("flap_dCDi")))),
         Function("aero/wing/CD", "wing drag", total(prop("aero/wing/CD0"), prop("aero/wing/CDi"))),
@@ -275,16 +320,19 @@ def _tail(terms: _Terms) -> list[Function]:
     eta = c("ht_eta")
     eps = prop("aero/ht/eps-rad")
     return _tail_flow(terms) + [
-        Function("aero/ht/CL-local", "tail lift in its local flow: eta (CL_h + K_de_slope dCL_e) + elevator "
-                                     "circulation offset 2 K_de_offset b_e sqrt(eta)/(V S) (eq. 3.36)",
-                 total(product(number(eta), total(t("ht_CL"), product(factor("K_de_slope"), t("elev_dCL")))),
+        Function("aero/ht/CL-local", "tail lift in its local flow: eta gain (CL_h + K_de_slope dCL_e) + elevator "
+                                     "circulation offset 2 K_de_offset b_e sqrt(eta)/(V S) (eq. 3.36); gain: the "
+                                     "slipstream's dynamic pressure",
+                 total(product(number(eta), prop("aero/slipstream/ht-gain"),
+                               total(t("ht_CL"), product(factor("K_de_slope"), t("elev_dCL")))),
                        _elevator_offset_lift(terms))),
-        Function("aero/ht/CD-local", "tail drag in its local flow: eta (K_cd0_slope CD0_h + K_cd0_offset "
+        Function("aero/ht/CD-local", "tail drag in its local flow: eta gain (K_cd0_slope CD0_h + K_cd0_offset "
                                      "S_h/S + K_cdi CDi_h + elevator drag)",
-                 product(number(eta), total(product(factor("K_cd0_slope"), t("ht_CD0"), prop("aero/body/re-factor")),
-                                            product(factor("K_cd0_offset"), number(c("ht_profile_ratio"))),
-                                            product(factor("K_cdi"), t("ht_CDi")),
-                                            t("elev_dCD")))),
+                 product(number(eta), prop("aero/slipstream/ht-gain"),
+                         total(product(factor("K_cd0_slope"), t("ht_CD0"), prop("aero/body/re-factor")),
+                               product(factor("K_cd0_offset"), number(c("ht_profile_ratio"))),
+                               product(factor("K_cdi"), t("ht_CDi")),
+                               t("elev_dCD")))),
         Function("aero/ht/CL", "tail lift, free-stream axes",
                  difference(product(prop("aero/ht/CL-local"), cosine(eps)),
                             product(prop("aero/ht/CD-local"), sine(eps)))),
@@ -296,7 +344,8 @@ def _tail(terms: _Terms) -> list[Function]:
                        product(number(c("ht_arm_z") / m.cbar_m),
                                difference(product(prop("aero/ht/CD"), cosine(prop(ALPHA_RAD))),
                                           product(prop("aero/ht/CL"), sine(prop(ALPHA_RAD))))),
-                       product(number(eta), total(t("ht_Cm"), product(factor("K_de_slope"), t("elev_dCm")))))),
+                       product(number(eta), prop("aero/slipstream/ht-gain"),
+                               total(t("ht_Cm"), product(factor("K_de_slope"), t("elev_dCm")))))),
     ]
 
 
@@ -342,9 +391,13 @@ def _forces(terms: _Terms) -> list[Axis]:
             Function("aero/force/Y_beta", "side force due to sideslip", force(t("CY_beta"), prop("aero/beta-rad"))),
             Function("aero/force/Y_rates", "side force due to roll and yaw rate",
                      force(total(product(t("CY_p"), terms.roll_rate()), product(t("CY_r"), terms.yaw_rate())))),
-            Function("aero/force/Y_controls", "side force due to aileron and rudder (K_da/K_dr slope, eq. 3.36)",
-                     force(total(product(factor("K_da_slope"), t("ail_dCY")), product(factor("K_dr_slope"), t("rud_dCY")),
-                                 prop("aero/rudder/CY-offset"))))))]
+            Function("aero/force/Y_controls", "side force due to aileron and rudder (K_da/K_dr slope, eq. 3.36; the "
+                                              "rudder in the slipstream's dynamic pressure)",
+                     force(total(product(factor("K_da_slope"), t("ail_dCY")),
+                                 product(factor("K_dr_slope"), t("rud_dCY"), prop("aero/slipstream/fin-gain")),
+                                 prop("aero/rudder/CY-offset")))),
+            Function("aero/force/Y_slipstream", "the fin in the slipstream: dynamic pressure and swirl",
+                     force(_fin_slipstream(terms, "CY")))))]
 
 
 def _roll_and_pitch(terms: _Terms) -> list[Axis]:
@@ -355,10 +408,13 @@ def _roll_and_pitch(terms: _Terms) -> list[Axis]:
             Function("aero/moment/l_rates", "roll damping and roll due to yaw rate",
                      moment("metrics/bw-ft", total(product(t("Cl_p"), terms.roll_rate()),
                                                    product(t("Cl_r"), terms.yaw_rate())))),
-            Function("aero/moment/l_controls", "aileron (K_da slope/offset) and rudder (K_dr) roll",
+            Function("aero/moment/l_slipstream", "the fin in the slipstream: dynamic pressure and swirl",
+                     moment("metrics/bw-ft", _fin_slipstream(terms, "Cl"))),
+            Function("aero/moment/l_controls", "aileron (K_da slope/offset) and rudder (K_dr, in the slipstream) roll",
                      moment("metrics/bw-ft", total(product(factor("K_da_slope"), t("ail_dCl")),
                                                    prop("aero/aileron/Cl-offset"),
-                                                   product(factor("K_dr_slope"), t("rud_dCl")),
+                                                   product(factor("K_dr_slope"), t("rud_dCl"),
+                                                           prop("aero/slipstream/fin-gain")),
                                                    product(number(c("rudder_arm_z") / m.b_m),
                                                            prop("aero/rudder/CY-offset"))))),
             Function("aero/moment/l_damping", "extra roll damping -K_Clp p b/(2V) (eq. 3.48)",
@@ -386,9 +442,13 @@ def _yaw(terms: _Terms, geom: AircraftGeometry) -> Axis:
         Function("aero/moment/n_rates", "yaw damping and yaw due to roll rate",
                  moment("metrics/bw-ft", total(product(t("Cn_p"), terms.roll_rate()),
                                                product(t("Cn_r"), terms.yaw_rate())))),
-        Function("aero/moment/n_controls", "aileron adverse yaw and rudder (K_da/K_dr, eq. 3.36)",
+        Function("aero/moment/n_slipstream", "the fin in the slipstream: dynamic pressure and swirl",
+                 moment("metrics/bw-ft", _fin_slipstream(terms, "Cn"))),
+        Function("aero/moment/n_controls", "aileron adverse yaw and rudder (K_da/K_dr, eq. 3.36; the rudder in the "
+                                           "slipstream)",
                  moment("metrics/bw-ft", total(product(factor("K_da_slope"), t("ail_dCn")),
-                                               product(factor("K_dr_slope"), t("rud_dCn")),
+                                               product(factor("K_dr_slope"), t("rud_dCn"),
+                                                       prop("aero/slipstream/fin-gain")),
                                                product(number(-c("vt_arm_x") / m.b_m), prop("aero/rudder/CY-offset"))))),
         Function("aero/moment/n_damping", "extra yaw damping -K_Cnr r b/(2V) (eq. 3.54)",
                  moment("metrics/bw-ft", number(-1.0), factor("K_Cnr"), terms.yaw_rate())),
@@ -401,7 +461,7 @@ def aerodynamics(geom: AircraftGeometry, model: AeroModel) -> Aerodynamics:
     """The aerodynamic functions of an aircraft: coefficients on the wing area, moments about
     the AERORP, angles in degrees; calibration factors where the method puts them."""
     terms = _Terms(model)
-    functions = _air(terms) + _wing(terms) + _tail(terms) + _body_and_offsets(terms)
+    functions = _air(terms) + _slipstream(terms) + _wing(terms) + _tail(terms) + _body_and_offsets(terms)
     return Aerodynamics(tuple(functions), tuple(_forces(terms) + _roll_and_pitch(terms) + [_yaw(terms, geom)]))
 
 

@@ -55,6 +55,7 @@ class Simulator:
         if not self.paths.engine_xml.is_file():
             raise ModelError(f"{self.paths.engine_xml} not found: run 'jsbsim-calib generate {name}'")
         read(self.paths.engine_xml)                  # a broken engine file named here, not by JSBSim's loader
+        self.declared = declared                     # the values the aircraft file declares
         self.factors = FactorSet() if baseline else (factors if factors is not None else declared)
         self._box = make_dir("jsbsim-calib-")
         try:

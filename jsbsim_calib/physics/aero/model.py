@@ -22,6 +22,7 @@ import numpy as np
 
 from ..atmosphere import density, isa_pressure, isa_temperature, viscosity
 from ..geometry import AircraftGeometry
+from ..slipstream import FREE_VORTEX, TC_GRID, TailGeometry, disc_area_m2, immersion_tables
 from ...units import FT, G0
 from . import body
 from .lifting_line import freestream_dir, influence
@@ -288,8 +289,10 @@ def lateral_tables(geom: AircraftGeometry, airfoils: dict, model: AeroModel, eta
     sm = StripModel(geom, airfoils, surfaces, ref, n_half,
                     dynamic_pressure_ratio={"horizontal_tail": eta, "vertical_tail": eta})
     wing_only = sm.strips.surface == "wing"
+    fin_only = sm.strips.surface == "vertical_tail"
     names = ["CY_beta", "Cl_beta", "Cn_beta", "CY_p", "Cl_p", "Cn_p", "CY_r", "Cl_r", "Cn_r", "CL_q", "Cm_q"]
     out = {k: np.zeros(len(LAT_ALPHA_DEG)) for k in names}
+    fin = {f"vt_{k}_beta": np.zeros(len(LAT_ALPHA_DEG)) for k in ("CY", "Cl", "Cn")}
     ail = geom.wing.control("aileron")
     rud = geom.vertical_tail.control("rudder")
     da = np.linspace(math.degrees(ail.deflection_min_rad), math.degrees(ail.deflection_max_rad), 9) if ail else np.zeros(1)
@@ -312,6 +315,9 @@ def lateral_tables(geom: AircraftGeometry, airfoils: dict, model: AeroModel, eta
         cp, cm_ = co(beta=db), co(beta=-db)
         for k in ("CY", "Cl", "Cn"):
             out[f"{k}_beta"][i] = (cp[k] - cm_[k]) / (2 * db)
+        cp, cm_ = co(beta=db, mask=fin_only), co(beta=-db, mask=fin_only)
+        for k in ("CY", "Cl", "Cn"):           # the fin alone: what a sidewash at the fin does (swirl)
+            fin[f"vt_{k}_beta"][i] = (cp[k] - cm_[k]) / (2 * db)
         for rate, axis, ref_len in (("p", 0, b), ("r", 2, b)):
             om = np.zeros(3)
             om[axis] = 2.0 * dp / ref_len
@@ -339,6 +345,8 @@ def lateral_tables(geom: AircraftGeometry, airfoils: dict, model: AeroModel, eta
              "q": "per unit q cbar/(2V), wing only (the tail acts through its local angle)"}
     for k, v in out.items():
         model.tables[k] = Table("alpha", LAT_ALPHA_DEG, v, f"{k} {units[k.split('_')[1]]}")
+    for k, v in fin.items():
+        model.tables[k] = Table("alpha", LAT_ALPHA_DEG, v, f"{k[3:]} of the fin alone, per rad of sideslip at the fin")
     for k, v in ail_t.items():
         model.tables[f"ail_d{k}"] = Table("alpha", LAT_ALPHA_DEG, v, f"aileron increment of {k}", "aileron", da)
     for k, v in rud_t.items():
@@ -383,11 +391,45 @@ def body_tables(geom: AircraftGeometry, model: AeroModel) -> None:
     model.add_const("fus_arm_z", geom.fuselage.z_axis_m - model.aerorp_m[2], "fuselage axis above the AERORP [m]")
 
 
+def slipstream_geometry(geom: AircraftGeometry, torque_shape=FREE_VORTEX) -> TailGeometry:
+    """The tails and the wing root relative to the propeller's thrust line; ``torque_shape``:
+    the blade's (:func:`jsbsim_calib.physics.slipstream.torque_shape`), default a free vortex."""
+    p = geom.propeller
+    z_t = float(p.location_m[2])
+    vt = geom.vertical_tail
+    wing = geom.wing
+    root_chord = float(np.interp(wing.fuselage_half_width_m, wing.y_m, wing.chord_m))
+    return TailGeometry(radius_m=0.5 * p.diameter_m, ht_semispan_m=geom.horizontal_tail.semispan_m,
+                        ht_height_m=geom.horizontal_tail.z_mean_m - z_t, fin_root_m=float(vt.z_m[0]) - z_t,
+                        fin_tip_m=float(vt.z_m[-1]) - z_t, wing_height_m=float(wing.z_m[0]) - z_t,
+                        wing_area_m2=geom.reference.wing_area_m2, wing_root_chord_m=root_chord,
+                        fuselage_half_width_m=wing.fuselage_half_width_m, torque_shape=torque_shape)
+
+
+def slipstream_tables(geom: AircraftGeometry, model: AeroModel, torque_shape=FREE_VORTEX) -> None:
+    """Momentum-theory slipstream (:mod:`jsbsim_calib.physics.slipstream`): the shares of the
+    horizontal tail, the fin and the wing inside it and the swirl geometry at the fin (from the
+    blade's torque shape), against the disc thrust coefficient Tc."""
+    g = slipstream_geometry(geom, torque_shape)
+    docs = {"ht_fraction": "share of the horizontal tail span in the slipstream",
+            "fin_fraction": "share of the fin height in the slipstream",
+            "fin_swirl_arm": "swirl geometry s/(4 (r/R)(r_w/R)) over the immersed fin (s: the blade's torque shape): "
+                             "swirl angle = Qc x this / ((1+a)(1+2a))",
+            "wing_fraction": "share of the reference wing area in the slipstream (root strips)"}
+    for k, v in immersion_tables(g).items():
+        model.tables[f"slip_{k}"] = Table("tc", TC_GRID, v, docs[k] + " (against the disc thrust coefficient Tc)")
+    model.add_const("disc_area", disc_area_m2(g.radius_m), "propeller disc area [m^2]")
+    model.add_const("disc_radius", g.radius_m, "propeller radius [m]")
+    model.add_const("prop_sense", float(geom.propeller.sense), "propeller rotation sense (1: clockwise from behind)")
+
+
 def build_aero(geom: AircraftGeometry, airfoils: dict, *, tail_eta: float = 0.9, n_half: int = 24,
-               progress=None) -> AeroModel:
-    """Run the chain: wing, flaps and downwash, tail, lateral, body."""
+               progress=None, torque_shape=FREE_VORTEX) -> AeroModel:
+    """Run the chain: slipstream, wing, flaps and downwash, tail, lateral, body (``torque_shape``:
+    the propeller's, for the swirl)."""
     model = AeroModel(geom.reference.wing_area_m2, geom.reference.span_m, geom.cbar_m, geom.aero_reference_point_m)
-    steps = [("wing", lambda: wing_tables(geom, airfoils, model, n_half)),
+    steps = [("slipstream", lambda: slipstream_tables(geom, model, torque_shape)),
+             ("wing", lambda: wing_tables(geom, airfoils, model, n_half)),
              ("flaps", lambda: flap_tables(geom, airfoils, model, n_half)),
              ("tail", lambda: tail_tables(geom, airfoils, model, tail_eta, max(8, n_half * 2 // 3))),
              ("lateral", lambda: lateral_tables(geom, airfoils, model, tail_eta, max(12, n_half * 2 // 3))),
