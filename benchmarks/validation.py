@@ -13,6 +13,7 @@ import warnings
 from pathlib import Path
 
 from jsbsim_calib.calibration.validation import STAGE_DATA_KEYS, stage_data, validate_steady, validate_trims
+from jsbsim_calib.calibration.validation_dynamic import validate_dynamic
 from jsbsim_calib.jsbsim.product import load_aircraft_geometry
 from jsbsim_calib.physics_checks import run_physics_checks
 
@@ -26,6 +27,8 @@ def main(names: list[str]) -> None:
         runs = [validate_steady]
         if all(k in geom.data_files for k in STAGE_DATA_KEYS["trims"]):
             runs.append(validate_trims)
+        if all(k in geom.data_files for k in STAGE_DATA_KEYS["dynamic"]):
+            runs.append(validate_dynamic)
         for run in runs:
             v = run(root, name)
             refits = len(v.folds) + (v.control is not None)

@@ -143,6 +143,36 @@ def test_validate_cli_writes_the_report_and_its_figure(tmp_path):
     assert bad.returncode == 2 and "unknown fold" in bad.stderr
 
 
+# --------------------------------------------------------------------------- stage 2b
+def test_stage2b_folds_group_the_tests_a_user_flies():
+    from jsbsim_calib.calibration.validation_dynamic import dynamic_fold_names
+    assert dynamic_fold_names(REPO, "c172") == ["pitch pulses", "roll pulses", "yaw pulses", "C.56 phugoid",
+                                                 "C.58 roll step", "C.60 roll step"]
+
+
+def test_a_dynamic_error_that_is_not_a_number_never_passes():
+    from jsbsim_calib.calibration.validation_dynamic import Judged, error_stat
+    s = error_stat([Judged("C.58", "roll_rate_deg_s", "deg/s", math.nan, 2.0),
+                    Judged("C.60", "roll_rate_deg_s", "deg/s", 1.0, 2.0)])
+    assert s.failed == 1 and s.within_pct == 50.0 and s.rmse == 1.0
+    assert math.isnan(error_stat([Judged("C.58", "roll_rate_deg_s", "deg/s", math.nan, 2.0)]).rmse)
+
+
+def test_stage2b_left_out_roll_step_is_flown_on_a_refit_without_it():
+    """C.58 left out: the roll axis refitted on C.60 and the pulses (real fits, a few
+    evaluations), then C.58 flown. The two roll steps disagree (pb/2V 0.030 vs 0.041, README):
+    a fit to one misses the other by far more than the tolerance: the report flags it."""
+    from jsbsim_calib.calibration.validation_dynamic import validate_dynamic
+    val = validate_dynamic(REPO, "c172", folds=["C.58 roll step"], max_nfev=4, control=False)
+    (fold,) = val.folds
+    assert "roll dynamics" in fold.refitted and "pitch dynamics" not in fold.refitted
+    (m,) = fold.metrics
+    assert m.metric == "roll_rate_deg_s" and m.fit.n == 1 and m.held_out.n == 1 and m.tolerance == 2.0
+    assert all(math.isfinite(x) for x in (m.fit.rmse, m.held_out.rmse, m.in_sample.rmse))
+    assert m.held_out.rmse > 2 * m.tolerance and m.fit.rmse < m.tolerance and m.flagged
+    assert val.in_sample["dynamic"]["phugoid_period_s"].within_pct == 100.0
+
+
 # --------------------------------------------------------------------------- physics checks
 @pytest.fixture(scope="module")
 def physics():

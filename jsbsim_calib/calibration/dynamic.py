@@ -215,11 +215,11 @@ def dynamic_stage(sim: Simulator, tests: Sequence[DynamicTest | RecordedTest], d
                   start: FactorSet,
                   steps: Sequence[DynamicStep] = DYNAMIC_STEPS, progress: Callable[[str], None] | None = None,
                   after_step: Callable[[DynamicStep, FitResult], None] | None = None,
-                  executor: Executor = SERIAL) -> list[FitResult]:
+                  executor: Executor = SERIAL, max_nfev: int | None = MAX_NFEV) -> list[FitResult]:
     """Stage 2b: the dynamic steps in order, each from the factors of the last."""
     results, current = [], start
     for step in steps:
-        out = dynamic_step(sim, step, tests, data, current, progress=progress, executor=executor)
+        out = dynamic_step(sim, step, tests, data, current, progress=progress, executor=executor, max_nfev=max_nfev)
         if out is None:
             if progress:
                 progress(f"{step.name}: no dynamic test of kinds {', '.join(step.kinds)}, skipped")
@@ -231,7 +231,7 @@ def dynamic_stage(sim: Simulator, tests: Sequence[DynamicTest | RecordedTest], d
             after_step(step, out)
     joint = refit_step(steps, results)
     if joint is not None:
-        out = dynamic_step(sim, joint, tests, data, current, progress=progress, executor=executor)
+        out = dynamic_step(sim, joint, tests, data, current, progress=progress, executor=executor, max_nfev=max_nfev)
         if out is not None:
             results.append(out)
             sim.set_factors(out.final)

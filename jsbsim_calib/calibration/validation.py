@@ -55,7 +55,8 @@ STEADY_KINDS = ("poh_climb", "poh_cruise")
 TRIMS_KINDS = ("snapshot", "flap_climb")
 DATA_KEYS = {"poh_climb": "poh_climb", "poh_cruise": "poh_cruise", "snapshot": "flight_test",
              "flap_climb": "flap_climb"}      # data kind -> key of the geometry file's [data] table
-STAGE_DATA_KEYS = {"steady": ("poh_climb", "poh_cruise"), "trims": ("flight_test",)}   # [data] keys a stage needs
+STAGE_DATA_KEYS = {"steady": ("poh_climb", "poh_cruise"), "trims": ("flight_test",),
+                   "dynamic": ("flight_test", "flight_test_results")}   # [data] keys a stage needs
 
 Say = Callable[[str], None]
 

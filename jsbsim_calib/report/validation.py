@@ -16,7 +16,8 @@ from ..calibration.validation import FLAG_RATIO, RESOLUTION, ErrorStat, FoldResu
 from ..physics_checks import PhysicsChecks  # noqa: E402
 from . import plots  # noqa: E402
 
-STAGE_TITLES = {"steady": "stage 1 (POH climb and cruise)", "trims": "stage 2a (flight-test trims)"}
+STAGE_TITLES = {"steady": "stage 1 (POH climb and cruise)", "trims": "stage 2a (flight-test trims)",
+                "dynamic": "stage 2b (dynamic tests)"}
 
 
 def _f(v: float, d: int = 2) -> str:
