@@ -13,7 +13,7 @@ reports, print).
     jsbsim-calib export flightgear AIRCRAFT --out DIR
     jsbsim-calib regress AIRCRAFT --baseline REF.json [--data FILE...] [--share X] | --write-baseline REF.json
     jsbsim-calib validate AIRCRAFT [--stage steady|trims|dynamic|all] [--fold NAME] [--report-dir reports]
-    jsbsim-calib slipstream AIRCRAFT [--stage steady|all] [--variant off|swirl|theory|fitted] [--json OUT]
+    jsbsim-calib slipstream AIRCRAFT [--stage steady|all] [--variant off|swirl|theory|fitted] [--max-nfev N] [--json OUT]
     jsbsim-calib airfoil NAME
 """
 from __future__ import annotations
@@ -395,11 +395,13 @@ def cmd_slipstream(a) -> int:
     root = Path(a.root)
     load_aircraft_geometry(root, a.aircraft)
     chosen = [v for v in SLIPSTREAM if not a.variant or v.name in a.variant]
+    kw = {} if a.max_nfev is None else {"max_nfev": a.max_nfev}
     results = compare_variants(root, a.aircraft, chosen, stages=a.stage, progress=_progress(a.quiet),
-                               executor=a.pool)
+                               executor=a.pool, **kw)
     print(format_comparison(a.aircraft, results))
     product = read_calibration(AircraftPaths(root, a.aircraft))
-    command = f"jsbsim-calib slipstream {a.aircraft}" + ("" if a.stage == "all" else f" --stage {a.stage}")
+    command = (f"jsbsim-calib slipstream {a.aircraft}" + ("" if a.stage == "all" else f" --stage {a.stage}")
+               + ("" if a.max_nfev is None else f" --max-nfev {a.max_nfev}"))
     md = write_comparison_report(a.aircraft, results, {k: product[k] for k in SWITCHES},
                                  Path(a.report_dir) / a.aircraft, command)
     print(f"report: {md}")
@@ -518,6 +520,8 @@ def _analysis_parsers(sub) -> None:
     s.add_argument("--stage", choices=("steady", "all"), default="all",
                    help="steady: stage 1 only; all (default): every stage the aircraft's data allow")
     s.add_argument("--json", help="also write each variant's factors and figures as JSON to this file")
+    s.add_argument("--max-nfev", dest="max_nfev", type=int, metavar="N",
+                   help="evaluations per fit (default: the calibration's); fewer for a quick look")
     s.add_argument("--variant", action="append", choices=("off", "swirl", "theory", "fitted"),
                    help="run only this variant (repeatable; default all three)")
     s.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")

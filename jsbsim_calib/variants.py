@@ -16,6 +16,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from .calibration.fit import MAX_NFEV
 from .calibration.steady import steady_factors
 from .calibration.trims import TRIM_STEPS
 from .errors import ModelError
@@ -49,9 +50,10 @@ SLIPSTREAM = (
             {"K_slip": 0.0, "K_swirl": 1.0}),
     Variant("theory", "momentum theory as computed (K_slip = K_swirl = 1, not fitted)",
             {"K_slip": 1.0, "K_swirl": 1.0}),
-    Variant("fitted", "from the theory, K_slip fitted in the pitch step, K_swirl in the P-factor step (the "
-                      "steps' prior pulls both toward 0: the data must earn them)",
-            {"K_slip": 1.0, "K_swirl": 1.0}, {"pitch": ("K_slip",), "pfactor": ("K_swirl",)}),
+    Variant("fitted", "stage 1 without it; stage 2a fits K_slip in the control step (the trim elevator from "
+                      "full-power climbs to cruise) and K_swirl in the P-factor step (the climb rudder), from 0: the "
+                      "steps' prior pulls both toward 0, the data must earn them",
+            {"K_slip": 0.0, "K_swirl": 0.0}, {"control": ("K_slip",), "pfactor": ("K_swirl",)}),
 )
 
 
@@ -86,9 +88,11 @@ class VariantResult:
                 out[f"trims {m} RMSE"] = snap[m]["rmse"]
         for m, rmse in full_power_rmse(self.trims).items():
             out[f"full-power {m} RMSE"] = rmse
-        out["dynamic tests passed"] = (sum(d["verdict"] == "PASS" for d in self.dynamic.values())
-                                       if self.dynamic else None)
-        for k in ("K_slip", "K_swirl", "K_PF", "K_dr_slope", "K_de_slope"):     # the switches and what they compete with
+        if self.dynamic:
+            judged = [d["verdict"] for d in self.dynamic.values() if d["verdict"] != "n/a"]
+            out[f"dynamic tests passed (of {len(judged)})"] = judged.count("PASS")
+        competing = ("K_PF", "K_dr_slope", "K_de_slope") if self.trims else ()     # what the switches compete with
+        for k in ("K_slip", "K_swirl") + competing:
             out[k] = self.factors[k]
         return out
 
@@ -110,21 +114,23 @@ def _steps_with(fitted: Mapping[str, tuple[str, ...]]):
 
 
 def run_variant(root: Path | str, name: str, variant: Variant, *, stages: str = "all",
-                progress: Callable[[str], None] | None = None, executor: Executor = SERIAL) -> VariantResult:
+                progress: Callable[[str], None] | None = None, executor: Executor = SERIAL,
+                max_nfev: int | None = MAX_NFEV) -> VariantResult:
     """The chain (stage 1, then 2a and 2b where the aircraft has flight-test data and ``stages``
-    is ``all``) from neutral factors with the variant's switches."""
+    is ``all``) from neutral factors with the variant's switches (``max_nfev``: evaluations per
+    fit, the calibration's by default; fewer for a quick look)."""
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     start = FactorSet(dict(variant.switches))
-    steady = run_steady(root, name, start=start, progress=say, executor=executor)
+    kw = {"progress": say, "executor": executor, "max_nfev": max_nfev}
+    steady = run_steady(root, name, start=start, **kw)
     factors, poh, trims, dynamic = steady.factors, steady.calibrated, {}, {}
     geom = load_aircraft_geometry(Path(root), name)
     if stages == "all" and "flight_test" in geom.data_files:
-        tr = run_trims(root, name, start=steady_factors(factors), steps=_steps_with(variant.fitted), progress=say,
-                       executor=executor)
+        tr = run_trims(root, name, start=steady_factors(factors), steps=_steps_with(variant.fitted), **kw)
         factors, poh = tr.factors, tr.poh_after
         if "flight_test_results" in geom.data_files:
-            dyn = run_dynamic(root, name, start=factors, progress=say, executor=executor)
+            dyn = run_dynamic(root, name, start=factors, **kw)
             factors, poh, trims = dyn.factors, dyn.poh_after, dyn.trims_after
             dynamic = {f"{r.test.id} {m.metric.name}": {"model": m.model, "measured": m.metric.measured,
                                                        "verdict": m.verdict}
@@ -136,7 +142,7 @@ def run_variant(root: Path | str, name: str, variant: Variant, *, stages: str = 
 
 def compare_variants(root: Path | str, name: str, variants=SLIPSTREAM, *, stages: str = "all",
                      progress: Callable[[str], None] | None = None,
-                     executor: Executor = SERIAL) -> list[VariantResult]:
+                     executor: Executor = SERIAL, max_nfev: int | None = MAX_NFEV) -> list[VariantResult]:
     """Each variant's chain, in order. Without stage 2a (``stages="steady"`` or no flight-test
     data) a variant that only adds fitted factors to its steps is the same as its switches
     alone and is left out (said through ``progress``)."""
@@ -148,5 +154,5 @@ def compare_variants(root: Path | str, name: str, variants=SLIPSTREAM, *, stages
             say(f"variant {v.name}: left out (no stage 2a here, so nothing fits its factors)")
             continue
         say(f"variant {v.name}: {v.doc}")
-        out.append(run_variant(root, name, v, stages=stages, progress=say, executor=executor))
+        out.append(run_variant(root, name, v, stages=stages, progress=say, executor=executor, max_nfev=max_nfev))
     return out

@@ -19,7 +19,7 @@ from typing import Callable
 
 from .calibration.closeloop import CloseLoopResult, close_loop
 from .calibration.dynamic import DYNAMIC_STEPS, DynamicStep, dynamic_stage
-from .calibration.fit import FitResult
+from .calibration.fit import MAX_NFEV, FitResult
 from .calibration.points import stage1_subset
 from .calibration.steady import steady_factors, steady_stage
 from .calibration.trims import TRIM_STEPS, TrimStep, trims_stage
@@ -87,7 +87,8 @@ def model_curves(root: Path, name: str, factors: FactorSet) -> tuple[dict[str, A
 
 
 def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
-               progress: Callable[[str], None] | None = None, executor: Executor = SERIAL) -> SteadyCalibration:
+               progress: Callable[[str], None] | None = None, executor: Executor = SERIAL,
+               max_nfev: int | None = MAX_NFEV) -> SteadyCalibration:
     """Stage 1 on the aircraft's POH data, with baseline and calibrated evaluations
     (``executor``: where the fits' independent evaluations run; the same results anywhere).
     ``start``: default neutral, with the model switches the aircraft file sets (the slipstream)."""
@@ -102,7 +103,7 @@ def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
         baseline = {k: evaluate_dataset(sim, ds, model_kind="baseline") for k, ds in data.items()}
         ci, ki = stage1_subset(climb), stage1_subset(cruise)
         fit, ff = steady_stage(sim, climb, cruise, start=start, climb_points=ci, cruise_points=ki, progress=say,
-                               executor=executor)
+                               executor=executor, max_nfev=max_nfev)
         sim.set_factors(ff.final)
         say(f"calibrated: trimming {len(climb) + len(cruise)} POH points")
         calibrated = {k: evaluate_dataset(sim, ds) for k, ds in data.items()}
@@ -156,7 +157,7 @@ class TrimsCalibration:
 
 def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps: tuple[TrimStep, ...] = TRIM_STEPS,
               start: FactorSet | None = None, progress: Callable[[str], None] | None = None,
-              executor: Executor = SERIAL) -> TrimsCalibration:
+              executor: Executor = SERIAL, max_nfev: int | None = MAX_NFEV) -> TrimsCalibration:
     """Stage 2a on the aircraft's flight-test trims, from its stage-1 factors.
 
     ``skip``: names of steps left out (e.g. ``("pfactor",)``); ``start``: factors to start
@@ -189,7 +190,7 @@ def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps:
         poh_before = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
         run = tuple(st for st in steps if st.name not in skip)
         results = trims_stage(sim, {**ft, **poh}, start=start, steps=run, progress=say,
-                              after_step=lambda st, res: evaluate(st.name), executor=executor)
+                              after_step=lambda st, res: evaluate(st.name), executor=executor, max_nfev=max_nfev)
         final = results[-1].final if results else start
         sim.set_factors(final)
         say(f"stage 2a model: trimming {sum(len(d) for d in poh.values())} POH points")
@@ -245,7 +246,8 @@ def dynamic_tests(root: Path, name: str) -> list[DynamicTest]:
 
 def run_dynamic(root: Path | str, name: str, *, start: FactorSet | None = None,
                 steps: tuple[DynamicStep, ...] = DYNAMIC_STEPS,
-                progress: Callable[[str], None] | None = None, executor: Executor = SERIAL) -> DynamicCalibration:
+                progress: Callable[[str], None] | None = None, executor: Executor = SERIAL,
+                max_nfev: int | None = MAX_NFEV) -> DynamicCalibration:
     """Stage 2b on the aircraft's dynamic tests, from its current factors (stage 2a's)."""
     root = Path(root)
     t0 = time.perf_counter()
@@ -262,7 +264,7 @@ def run_dynamic(root: Path | str, name: str, *, start: FactorSet | None = None,
         before = evaluate_dynamic(sim, tests, executor=executor)
         trims_before = {k: evaluate_dataset(sim, ds) for k, ds in ft.items()}
         results = dynamic_stage(sim, tests, {**ft, **poh}, start=start, steps=steps, progress=say,
-                                executor=executor)
+                                executor=executor, max_nfev=max_nfev)
         final = results[-1].final if results else start
         sim.set_factors(final)
         after = evaluate_dynamic(sim, tests, executor=executor)

@@ -34,7 +34,7 @@ def _better(label: str, new: float, old: float) -> bool | None:
     """Whether ``new`` is better than ``old`` for this figure (None: no order, e.g. a factor)."""
     if label.startswith("K_"):
         return None
-    higher = label.endswith("within %") or label.endswith("passed")
+    higher = label.endswith("within %") or "passed" in label
     return new > old if higher else new < old
 
 
