@@ -1,14 +1,14 @@
-"""Stage 2b held out: the dynamic tests left out in groups a user varies (a test, or a family
-of pulses), stage 2b's own axis fits rerun on the rest, and the left-out tests flown.
+"""Stage 2b held out: each dynamic test with an amplitude-free, toleranced metric left out in
+turn, stage 2b's own axis fits rerun on the rest, and the left-out test flown.
 
-A fold refits only the dynamic steps that fly a test it leaves out (and the coupled lateral
+A fold refits only the dynamic steps that fly the test it leaves out (and the coupled lateral
 refit after them), from the stage-2a factors, as stage 2b does; the kept tests give the fit
-error, the left-out ones the held-out error, the product (after stage 2b) the in-sample one,
-per metric, in the types of :mod:`jsbsim_calib.calibration.validation`. Metrics without a
-tolerance (the phugoid's "representative" damping) are not judged. A peak rate after a pulse
-depends on the unrecorded input amplitude: it is judged as stage 2b fits it, at the amplitude
-within :data:`~jsbsim_calib.calibration.dynamic.AMPLITUDE_RANGE` that explains the flight test
-best (metric name suffixed ``@best amplitude``).
+error, the left-out one the held-out error, the product (after stage 2b) the in-sample one,
+per metric, in the types of :mod:`jsbsim_calib.calibration.validation`. Not judged: metrics
+without a tolerance (the phugoid's "representative" damping), and the peak rates after the
+pulses, which depend on the unrecorded input amplitude: stage 2b fits them with the amplitude
+free within its plausible range, where every pulse is explained, so leaving one out tests
+nothing.
 """
 from __future__ import annotations
 
@@ -28,12 +28,11 @@ from ..errors import ModelError
 from ..factors import FactorSet
 from ..jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration
 from ..jsbsim.simulator import Simulator
-from .dynamic import DYNAMIC_STEPS, MAX_NFEV, amplitude_scale, dynamic_stage
+from .dynamic import DYNAMIC_STEPS, MAX_NFEV, dynamic_stage
 from .validation import (STEADY_KINDS, TRIMS_KINDS, ErrorStat, Fold, FoldMetric, FoldResult, Validation,
                          select_folds, stage_data, stage_factors)
 
 KIND = "dynamic"             # the fold's rows: positions in the aircraft's list of dynamic tests
-GROUPS = {"pitch_pulse": "pitch pulses", "roll_pulse": "roll pulses", "yaw_pulse": "yaw pulses"}
 
 
 @dataclass(frozen=True)
@@ -48,17 +47,9 @@ class Judged:
 
 
 def judged(results: Sequence[MetricResult]) -> list[Judged]:
-    """The metrics a fold judges: those with a tolerance; amplitude-dependent ones at the best
-    plausible amplitude."""
-    out = []
-    for m in results:
-        if m.metric.tolerance is None:
-            continue
-        model, name = m.model, m.metric.name
-        if m.metric.amplitude_dependent:
-            model, name = model * amplitude_scale(model, m.metric.measured), f"{name} @best amplitude"
-        out.append(Judged(m.test, name, m.metric.unit, model - m.metric.measured, m.metric.tol()))
-    return out
+    """The metrics a fold judges: those with a tolerance that do not depend on an input amplitude."""
+    return [Judged(m.test, m.metric.name, m.metric.unit, m.error, m.metric.tol()) for m in results
+            if m.metric.tolerance is not None and not m.metric.amplitude_dependent]
 
 
 def error_stat(rows: Sequence[Judged]) -> ErrorStat:
@@ -70,13 +61,9 @@ def error_stat(rows: Sequence[Judged]) -> ErrorStat:
 
 
 def dynamic_folds(tests: Sequence[DynamicTest]) -> list[Fold]:
-    """A fold per test, except that the pulses of one axis go together (the same input on
-    the same factors)."""
-    groups: dict[str, list[int]] = {}
-    for i, t in enumerate(tests):
-        key = GROUPS.get(t.kind, f"{t.id} {t.kind.replace('_', ' ')}")
-        groups.setdefault(key, []).append(i)
-    return [Fold(name, "dynamic test", {KIND: tuple(rows)}) for name, rows in groups.items()]
+    """A fold per test with a metric :func:`judged` judges."""
+    return [Fold(f"{t.id} {t.kind.replace('_', ' ')}", "dynamic test", {KIND: (i,)}) for i, t in enumerate(tests)
+            if any(m.tolerance is not None and not m.amplitude_dependent for m in t.metrics)]
 
 
 def fold_metrics(fold: Fold, tests: Sequence[DynamicTest], refit: dict[str, list[Judged]],
@@ -174,8 +161,9 @@ def validate_dynamic(root: Path | str, name: str, *, folds: Sequence[str] | None
     val.notes.append(f"model: stage 2a factors of aircraft/{name}/calibration.json refitted by the stage-2b steps "
                      "that fly a left-out test (and the lateral refit after them), on the kept tests; in-sample: the "
                      "product (after stage 2b)")
-    val.notes.append("peak rates after pulses are judged at the input amplitude within the plausible range that "
-                     "explains the flight test best (the amplitude was not recorded), as stage 2b fits them")
+    val.notes.append("not folded: the pulses (their peak rates depend on the unrecorded input amplitude, free in the "
+                     "fit within its plausible range, where every pulse is explained) and the phugoid's damping (no "
+                     "tolerance); the refits still fly the pulses they keep")
     return val
 
 

@@ -15,6 +15,7 @@ from matplotlib.figure import Figure  # noqa: E402
 from ..variants import VariantResult  # noqa: E402
 
 AXES = ("pitch_deg", "elevator_deg", "aileron_deg", "rudder_deg")
+SAME_ABS, SAME_REL = 1e-3, 0.005       # figures closer than this are the same (a governed RPM off by 1e-7 ...)
 
 
 def _cell(v) -> str:
@@ -51,7 +52,7 @@ def against(results: Sequence[VariantResult], reference: str = "off") -> dict[st
         d = {"better": [], "worse": []}
         for k, v in r.rows().items():
             b = base.get(k)
-            if v is None or b is None or _cell(v) == _cell(b):
+            if v is None or b is None or abs(v - b) <= max(SAME_ABS, SAME_REL * max(abs(v), abs(b))):
                 continue
             good = _better(k, v, b)
             if good is not None:
@@ -87,8 +88,8 @@ def comparison_figure(results: Sequence[VariantResult]) -> Figure:
     b.set_ylabel("full-throttle rows: RMSE [deg]")
     for ax in (a, b):
         ax.grid(axis="y", alpha=0.3)
-    a.legend(fontsize=8)
-    fig.tight_layout()
+    fig.legend(*a.get_legend_handles_labels(), loc="upper center", ncol=len(results), fontsize=8, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.92))
     return fig
 
 
