@@ -285,3 +285,26 @@ def test_hand_edits_survive_calibrate_and_generate(tmp_path, capsys):
     assert paths.aircraft_xml.read_text() == after
     with Simulator(root, "c172") as sim:
         assert sim.new_exec().load_model("c172")
+
+
+def test_a_model_switch_set_by_hand_is_kept_without_a_warning(tmp_path, recwarn):
+    """The slipstream switches are the user's: a stage starts from the file's value and keeps it
+    (jsbsim_calib.workflow.run_steady), so writing it back is no overwrite and names nothing; a
+    fitted factor set by hand is still named."""
+    from jsbsim_calib.factors import switches
+    from jsbsim_calib.jsbsim.aircraft import read_factors
+    from jsbsim_calib.jsbsim.product import read_calibration, write_calibrated
+    root = copy_root(REPO, tmp_path / "root")
+    paths = AircraftPaths(root, "c172")
+    _edit(paths.aircraft_xml, '<property value="0" persistent="true"> calibration/K_slip </property>',
+          '<property value="1" persistent="true"> calibration/K_slip </property>')
+    _edit(paths.aircraft_xml, '<property value="1.018538712" persistent="true"> calibration/K_cdi </property>',
+          '<property value="1.1" persistent="true"> calibration/K_cdi </property>')
+    declared = read_factors(paths.aircraft_xml)
+    assert switches(declared)["K_slip"] == 1.0 and switches(declared)["K_cdi"] == 1.0   # the switch, cdi neutral
+    stage_result = read_calibration(paths).updated({"K_slip": 1.0})
+    done = write_calibrated(root, "c172", stage_result, "trims", {})
+    named = [str(w.message) for w in recwarn]
+    assert done.hand_set == ["K_cdi"] and any("K_cdi = 1.1" in m for m in named)
+    assert not any("K_slip" in m for m in named)
+    assert read_factors(paths.aircraft_xml)["K_slip"] == 1.0 and read_calibration(paths)["K_slip"] == 1.0

@@ -346,7 +346,8 @@ def write_calibrated(root: Path | str, name: str, factors: FactorSet, stage: str
     """Write calibrated factors into an aircraft of ``root`` as one unit: the aircraft file
     (values only: its comments, added functions and formatting stay), the baked propeller and
     the calibration record. A factor whose value in the file differs from calibration.json
-    (set by hand) is named in a warning before it is overwritten; the replaced files are
+    (set by hand) is named in a warning before it is overwritten (a model switch the stage kept
+    is not); the replaced files are
     backed up. A steady-stage result starts a new record (the flight-test stage builds on it
     and must be rerun)."""
     paths = AircraftPaths(Path(root), name)
@@ -355,6 +356,7 @@ def write_calibrated(root: Path | str, name: str, factors: FactorSet, stage: str
     tree = read(paths.aircraft_xml)
     declared = declared_factors(tree, paths.aircraft_xml)
     hand = hand_set_factors(declared, read_calibration(paths)) if paths.calibration.is_file() else []
+    hand = [h for h in hand if not _same(factors[h.name], h.new)]    # a value the stage kept (a model switch) stays
     warn_hand_set(paths, hand, f"the '{stage}' stage")
     changes = factor_changes(declared, factors)
     propeller = Propeller(load_aircraft_geometry(paths.root, name), read_bem_csv(paths.propeller_bem), name)
