@@ -274,7 +274,8 @@ def test_hand_edits_survive_calibrate_and_generate(tmp_path, capsys):
 
     _calibrate_dynamic(root, tmp_path / "reports")
     err = capsys.readouterr().err
-    assert "K_cdi = 1.1 differs from calibration.json" in err, err
+    assert "K_cdi = 1.1 differs from calibration.json" in err, err     # stage 2b does not fit it: kept, said so
+    assert "'dynamic' stage keeps it and records it" in err, err
     after = paths.aircraft_xml.read_text()
     assert "<!-- my hand note -->" in after and 'name="aero/my-hand-term"' in after
     assert (paths.backups / "1" / "c172.xml").read_text().count("my-hand-term") == 1
@@ -287,10 +288,10 @@ def test_hand_edits_survive_calibrate_and_generate(tmp_path, capsys):
         assert sim.new_exec().load_model("c172")
 
 
-def test_a_model_switch_set_by_hand_is_kept_without_a_warning(tmp_path, recwarn):
+def test_a_model_switch_set_by_hand_is_kept_and_said_so(tmp_path, recwarn):
     """The slipstream switches are the user's: a stage starts from the file's value and keeps it
-    (jsbsim_calib.workflow.run_steady), so writing it back is no overwrite and names nothing; a
-    fitted factor set by hand is still named."""
+    (jsbsim_calib.workflow.run_steady), so the warning says it is kept and recorded, not
+    overwritten; a fitted factor set by hand is named as overwritten."""
     from jsbsim_calib.factors import switches
     from jsbsim_calib.jsbsim.aircraft import read_factors
     from jsbsim_calib.jsbsim.product import read_calibration, write_calibrated
@@ -305,6 +306,6 @@ def test_a_model_switch_set_by_hand_is_kept_without_a_warning(tmp_path, recwarn)
     stage_result = read_calibration(paths).updated({"K_slip": 1.0})
     done = write_calibrated(root, "c172", stage_result, "trims", {})
     named = [str(w.message) for w in recwarn]
-    assert done.hand_set == ["K_cdi"] and any("K_cdi = 1.1" in m for m in named)
-    assert not any("K_slip" in m for m in named)
+    assert done.hand_set == ["K_cdi"] and any("K_cdi = 1.1" in m and "overwrites it" in m for m in named)
+    assert [m for m in named if "K_slip" in m] == [m for m in named if "K_slip = 1" in m and "keeps it" in m] != []
     assert read_factors(paths.aircraft_xml)["K_slip"] == 1.0 and read_calibration(paths)["K_slip"] == 1.0

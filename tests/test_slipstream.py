@@ -151,12 +151,14 @@ def test_jsbsim_computes_the_theory_from_its_own_thrust_and_torque(c172):
     tables = ss.immersion_tables(g)
     f_h = np.interp(tc, ss.TC_GRID, tables["ht_fraction"])
     assert fdm["aero/slipstream/ht-gain"] == pytest.approx(1 + f_h * tc, rel=1e-4)
-    torque_lbft = abs(fdm["propulsion/engine/propeller-torque-ftlb"])
+    torque_lbft = abs(fdm["propulsion/engine/propeller-torque-ftlb"])      # JSBSim's own propeller torque ...
+    shaft_lbft = fdm["propulsion/engine/power-hp"] * 550.0 / (fdm["propulsion/engine/propeller-rpm"] * math.pi / 30.0)
+    assert shaft_lbft == pytest.approx(torque_lbft, rel=1e-3)                # ... is what the model uses: P / omega
     qc = torque_lbft / (fdm["aero/qbar-psf"] * area_ft2 * g.radius_m / 0.3048)
     arm = np.interp(tc, ss.TC_GRID, tables["fin_swirl_arm"])
     a = float(ss.axial_induction(tc))
     swirl = qc * arm / ((1 + a) * (1 + 2 * a))
-    assert abs(fdm["aero/slipstream/fin-sideslip-rad"]) == pytest.approx(swirl, rel=1e-4)
+    assert abs(fdm["aero/slipstream/fin-sideslip-rad"]) == pytest.approx(swirl, rel=2e-3)
     assert math.isfinite(t.elevator_deg) and math.isfinite(t.rudder_deg)
 
 

@@ -21,6 +21,8 @@ from ..physics.engine import PistonParams
 from ..physics.geometry import AircraftGeometry
 from ..units import FT
 
+HP_FTLBF_S = 550.0            # [ft lbf/s per hp]
+
 # Parasite drag grows with lift as CDp (1 + 0.38 CL^2) (I. Kroo, Aircraft Design: Synthesis and
 # Analysis, "drag due to lift": the viscous part of lift-dependent drag). The wing strips
 # carry theirs in the section polars; this adds it to the fuselage, fin and drag items.
@@ -228,10 +230,13 @@ def _slipstream(terms: _Terms) -> list[Function]:
     return [
         Function(TC, "disc thrust coefficient Tc = T / (qbar A_disc), within [0, 20]",
                  smallest(number(20.0), largest(number(0.0), ratio(prop("propulsion/engine/thrust-lbs"), qa)))),
-        Function("aero/slipstream/qc", "disc torque coefficient Qc = Q / (qbar A_disc R), within [0, 5] (JSBSim's torque is -sense Q)",
-                 smallest(number(5.0), largest(number(0.0), ratio(product(number(-c("prop_sense")),
-                                                                          prop("propulsion/engine/propeller-torque-ftlb")),
-                                                                  product(qa, number(radius_ft)))))),
+        Function("aero/slipstream/qc", "disc torque coefficient Qc = Q / (qbar A_disc R), within [0, 5]; Q = the "
+                                       "engine's power / the propeller's angular speed (the properties every JSBSim "
+                                       "version has: FlightGear 2020.3's has no propeller-torque-ftlb)",
+                 smallest(number(5.0), largest(number(0.0), ratio(
+                     ratio(product(number(HP_FTLBF_S * 60.0 / (2.0 * math.pi)), prop("propulsion/engine/power-hp")),
+                           largest(prop("propulsion/engine/propeller-rpm"), number(1.0))),
+                     product(qa, number(radius_ft)))))),
         Function("aero/slipstream/a", "axial induction a: Tc = 4 a (1 + a)", a),
         Function("aero/slipstream/ht-gain", "dynamic-pressure gain of the horizontal tail: 1 + K_slip f_h(Tc) Tc",
                  total(number(1.0), product(factor("K_slip"), t("slip_ht_fraction"), prop(TC)))),

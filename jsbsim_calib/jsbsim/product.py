@@ -331,10 +331,13 @@ def hand_set_factors(declared: Mapping[str, float], recorded: Mapping[str, float
             if k in recorded and not _same(v, recorded[k])]
 
 
-def warn_hand_set(paths: AircraftPaths, hand: list[FactorChange], what: str) -> None:
+def warn_hand_set(paths: AircraftPaths, hand: list[FactorChange], what: str, kept: bool = False) -> None:
+    """Name each factor set by hand: ``what`` overwrites it, or (``kept``) keeps it and records it."""
+    done = (f"{what} keeps it and records it in calibration.json" if kept else
+            f"{what} overwrites it (the old file goes to {paths.backups}/)")
     for h in hand:
         warnings.warn(f"{paths.aircraft_xml}: {h.name} = {h.new:.10g} differs from calibration.json ({h.old:.10g}): "
-                      f"set by hand (or by close-loop --in-place); {what} overwrites it (the old file goes to {paths.backups}/)")
+                      f"set by hand (or by close-loop --in-place); {done}")
 
 
 def commit_product(paths: AircraftPaths, files: Mapping[Path, bytes]):
@@ -346,8 +349,8 @@ def write_calibrated(root: Path | str, name: str, factors: FactorSet, stage: str
     """Write calibrated factors into an aircraft of ``root`` as one unit: the aircraft file
     (values only: its comments, added functions and formatting stay), the baked propeller and
     the calibration record. A factor whose value in the file differs from calibration.json
-    (set by hand) is named in a warning before it is overwritten (a model switch the stage kept
-    is not); the replaced files are
+    (set by hand) is named in a warning, as overwritten or (a model switch, a factor the stage
+    does not fit) as kept and recorded; the replaced files are
     backed up. A steady-stage result starts a new record (the flight-test stage builds on it
     and must be rerun)."""
     paths = AircraftPaths(Path(root), name)
@@ -355,9 +358,10 @@ def write_calibrated(root: Path | str, name: str, factors: FactorSet, stage: str
     factors = rounded(factors)
     tree = read(paths.aircraft_xml)
     declared = declared_factors(tree, paths.aircraft_xml)
-    hand = hand_set_factors(declared, read_calibration(paths)) if paths.calibration.is_file() else []
-    hand = [h for h in hand if not _same(factors[h.name], h.new)]    # a value the stage kept (a model switch) stays
+    found = hand_set_factors(declared, read_calibration(paths)) if paths.calibration.is_file() else []
+    hand = [h for h in found if not _same(factors[h.name], h.new)]     # overwritten by the stage
     warn_hand_set(paths, hand, f"the '{stage}' stage")
+    warn_hand_set(paths, [h for h in found if h not in hand], f"the '{stage}' stage", kept=True)   # e.g. a switch
     changes = factor_changes(declared, factors)
     propeller = Propeller(load_aircraft_geometry(paths.root, name), read_bem_csv(paths.propeller_bem), name)
     files = {paths.aircraft_xml: aircraft_bytes(tree, factors, indent_file=False,
