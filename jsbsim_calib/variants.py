@@ -1,5 +1,5 @@
 """Model variants side by side: the same calibration chain run on the same data with a model
-switch set differently (the propeller slipstream: off, the theory, fitted), so that a user
+switch set differently (the propeller slipstream: off, the swirl alone, the theory, fitted), so that a user
 sees what a piece of physics buys before it goes into the product.
 
 A :class:`Variant` is data: the switch values the chain starts from and keeps, and the factors
