@@ -44,6 +44,7 @@ from .report.text import evaluation_table, format_stability, format_summary
 from .report.verdicts import format_verdicts, verdicts
 from .synth import synthesize, write_csv
 from .synth_maneuvers import check_settings, load_plan, synthesize_maneuvers
+from .variants import SLIPSTREAM, compare_variants
 from .workflow import load_data_for, run_close_loop, run_dynamic, run_steady, run_trims
 
 
@@ -351,12 +352,12 @@ def cmd_validate(a) -> int:
     from .report.validation import format_physics, format_validation, write_validation_report
     root, say, t0 = Path(a.root), _progress(a.quiet), time.perf_counter()
     geom = load_aircraft_geometry(root, a.aircraft)
-    stages = ("steady", "trims", "dynamic") if a.stage == "all" else (a.stage,)
+    stages = (a.stage,)
     if a.stage == "all":
-        for st in ("trims", "dynamic"):
-            if not all(k in geom.data_files for k in STAGE_DATA_KEYS[st]):
-                print(f"{a.aircraft}: no {' / '.join(STAGE_DATA_KEYS[st])} data, stage {STAGE_NUMBERS[st]} not validated")
-        stages = tuple(st for st in stages if all(k in geom.data_files for k in STAGE_DATA_KEYS[st]))
+        has = {st: all(k in geom.data_files for k in STAGE_DATA_KEYS[st]) for st in ("trims", "dynamic")}
+        for st in [st for st, ok in has.items() if not ok]:
+            print(f"{a.aircraft}: no {' / '.join(STAGE_DATA_KEYS[st])} data, stage {STAGE_NUMBERS[st]} not validated")
+        stages = ("steady",) + tuple(st for st, ok in has.items() if ok)
     folds = {st: None for st in stages}
     if a.fold:                               # each stage runs the named folds it has
         names = {st: dynamic_fold_names(root, a.aircraft) if st == "dynamic" else fold_names(root, a.aircraft, st)
@@ -391,7 +392,6 @@ def cmd_validate(a) -> int:
 def cmd_slipstream(a) -> int:
     from .factors import SWITCHES
     from .report.variants import format_comparison, write_comparison_report
-    from .variants import SLIPSTREAM, compare_variants
     root = Path(a.root)
     load_aircraft_geometry(root, a.aircraft)
     chosen = [v for v in SLIPSTREAM if not a.variant or v.name in a.variant]
@@ -513,8 +513,8 @@ def _analysis_parsers(sub) -> None:
     v.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
     v.set_defaults(func=cmd_validate)
 
-    s = sub.add_parser("slipstream", help="the propeller slipstream off, as the theory gives it, and fitted: each "
-                                          "variant calibrated from neutral on the same data; writes "
+    s = sub.add_parser("slipstream", help="the propeller slipstream off, its swirl alone, as the theory gives it, and "
+                                          "fitted: each variant calibrated from neutral on the same data; writes "
                                           "REPORT_DIR/AIRCRAFT/slipstream.md (nothing else)")
     s.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
     s.add_argument("--stage", choices=("steady", "all"), default="all",
@@ -522,8 +522,8 @@ def _analysis_parsers(sub) -> None:
     s.add_argument("--json", help="also write each variant's factors and figures as JSON to this file")
     s.add_argument("--max-nfev", dest="max_nfev", type=int, metavar="N",
                    help="evaluations per fit (default: the calibration's); fewer for a quick look")
-    s.add_argument("--variant", action="append", choices=("off", "swirl", "theory", "fitted"),
-                   help="run only this variant (repeatable; default all three)")
+    s.add_argument("--variant", action="append", choices=tuple(v.name for v in SLIPSTREAM),
+                   help="run only this variant (repeatable; default all of them)")
     s.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
     s.set_defaults(func=cmd_slipstream)
 

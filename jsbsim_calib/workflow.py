@@ -23,8 +23,8 @@ from .calibration.fit import MAX_NFEV, FitResult
 from .calibration.points import stage1_subset
 from .calibration.steady import steady_factors, steady_stage
 from .calibration.trims import TRIM_STEPS, TrimStep, trims_stage
-from .data.dynamic_tests import DynamicTest, load_dynamic_tests
-from .data.flighttest import QuirkWarning, load_control_travel
+from .data.dynamic_tests import DynamicTest, aircraft_dynamic_tests
+from .data.flighttest import QuirkWarning
 from .data.load import load_dataset
 from .data.schemas import Dataset
 from .dynamics import DynamicEvaluation, evaluate_dynamic
@@ -235,13 +235,7 @@ class DynamicCalibration:
 
 def dynamic_tests(root: Path, name: str) -> list[DynamicTest]:
     """The aircraft's dynamic tests: its flight-test results file with the snapshots' initial conditions."""
-    geom = load_aircraft_geometry(root, name)
-    missing = [k for k in ("flight_test", "flight_test_results") if k not in geom.data_files]
-    if missing or geom.control_travel_file is None:
-        raise ModelError(f"aircraft/{name}/geometry.toml names no {', '.join(missing) or 'control travel'} "
-                         "([data] table): no dynamic tests")
-    return load_dynamic_tests(geom.data_files["flight_test_results"], geom.data_files["flight_test"],
-                              load_control_travel(geom.control_travel_file))
+    return aircraft_dynamic_tests(load_aircraft_geometry(root, name), name)
 
 
 def run_dynamic(root: Path | str, name: str, *, start: FactorSet | None = None,

@@ -21,10 +21,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..data.dynamic_tests import DynamicTest, load_dynamic_tests
-from ..data.flighttest import QuirkWarning, load_control_travel
+from ..data.dynamic_tests import DynamicTest, aircraft_dynamic_tests
+from ..data.flighttest import QuirkWarning
 from ..dynamics import MetricResult, evaluate_dynamic
-from ..errors import ModelError
 from ..factors import FactorSet
 from ..jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration
 from ..jsbsim.simulator import Simulator
@@ -82,6 +81,14 @@ def fold_metrics(fold: Fold, tests: Sequence[DynamicTest], refit: dict[str, list
     return out
 
 
+def control_metrics(refit: dict[str, list[Judged]], product: dict[str, list[Judged]]) -> list[FoldMetric]:
+    """The control (nothing left out): the refit on every test against the product, per metric."""
+    mine = _by_name(product)
+    return [FoldMetric("none (control)", "control", KIND, name, rows[0].unit, error_stat(rows), error_stat(rows),
+                       error_stat(mine.get(name, [])), float(np.mean([j.tolerance for j in rows])))
+            for name, rows in _by_name(refit).items()]
+
+
 def _flown(sim: Simulator, tests: Sequence[DynamicTest]) -> dict[str, list[Judged]]:
     ev = evaluate_dynamic(sim, tests)
     return {r.test.id: judged(r.metrics) for r in ev.results}
@@ -100,14 +107,10 @@ def refit_dynamic(sim: Simulator, tests: Sequence[DynamicTest], data, start: Fac
 
 
 def dynamic_inputs(root: Path, name: str) -> tuple[list[DynamicTest], dict]:
-    geom = load_aircraft_geometry(root, name)
-    if "flight_test_results" not in geom.data_files:
-        raise ModelError(f"aircraft/{name}/geometry.toml names no flight_test_results data ([data] table): "
-                         "stage 2b cannot be validated")
+    """The aircraft's dynamic tests and the trim data the dynamic steps fit or hold."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", QuirkWarning)
-        tests = load_dynamic_tests(geom.data_files["flight_test_results"], geom.data_files["flight_test"],
-                                   load_control_travel(geom.control_travel_file))
+        tests = aircraft_dynamic_tests(load_aircraft_geometry(root, name), name)
         data = stage_data(root, name, TRIMS_KINDS + STEADY_KINDS)
     return tests, data
 
@@ -143,10 +146,7 @@ def validate_dynamic(root: Path | str, name: str, *, folds: Sequence[str] | None
             if fold.rows:
                 metrics = fold_metrics(fold, tests, flown, in_product)
             else:
-                metrics = [FoldMetric(fold.name, "control", KIND, m.name, m.unit, error_stat(rows), error_stat(rows),
-                                      error_stat([j for js in in_product.values() for j in js if j.name == m.name]),
-                                      float(np.mean([j.tolerance for j in rows])))
-                           for m in _first_of_each(flown) for rows in [_all(flown, m.name)]]
+                metrics = control_metrics(flown, in_product)
             failures = [f"{tests[i].id}: not flown" for i in fold.rows.get(KIND, ())
                         if any(not math.isfinite(j.error) for j in flown[tests[i].id])]
             moved = {k: (start[k], factors[k]) for k in factors if factors[k] != start[k]}
@@ -156,7 +156,7 @@ def validate_dynamic(root: Path | str, name: str, *, folds: Sequence[str] | None
         trims = sim.trims - trims0
     ctrl = results[0] if control else None
     val = Validation(name, "dynamic", results[1:] if control else results, ctrl,
-                     {KIND: {j.name: error_stat(_all(in_product, j.name)) for j in _first_of_each(in_product)}},
+                     {KIND: {name: error_stat(rows) for name, rows in _by_name(in_product).items()}},
                      max_nfev, time.perf_counter() - t0, trims)
     val.notes.append(f"model: stage 2a factors of aircraft/{name}/calibration.json refitted by the stage-2b steps "
                      "that fly a left-out test (and the lateral refit after them), on the kept tests; in-sample: the "
@@ -167,13 +167,10 @@ def validate_dynamic(root: Path | str, name: str, *, folds: Sequence[str] | None
     return val
 
 
-def _all(flown: dict[str, list[Judged]], name: str) -> list[Judged]:
-    return [j for js in flown.values() for j in js if j.name == name]
-
-
-def _first_of_each(flown: dict[str, list[Judged]]) -> list[Judged]:
-    seen: dict[str, Judged] = {}
+def _by_name(flown: dict[str, list[Judged]]) -> dict[str, list[Judged]]:
+    """The judged metrics of all tests, grouped by metric name (in the order they first appear)."""
+    out: dict[str, list[Judged]] = {}
     for js in flown.values():
         for j in js:
-            seen.setdefault(j.name, j)
-    return list(seen.values())
+            out.setdefault(j.name, []).append(j)
+    return out

@@ -34,10 +34,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, Problem
+from ..errors import DataError, ModelError, Problem
 from ..jsbsim.condition import Condition
 from ..jsbsim.trajectory import Input, Maneuver
-from .flighttest import SNAPSHOT_INPUTS, ControlAxis, to_jsbsim_sign
+from ..physics.geometry import AircraftGeometry
+from .flighttest import SNAPSHOT_INPUTS, ControlAxis, load_control_travel, to_jsbsim_sign
 from .schemas import Column, read_csv_checked
 
 PULSE_FRACTION = 1.0 / 3.0        # assumed pulse amplitude, share of the travel from neutral to the stop
@@ -228,3 +229,14 @@ def load_dynamic_tests(results: str | Path, snapshots: str | Path, travel: dict[
     if problems:
         raise DataError(results, problems)
     return tests
+
+
+def aircraft_dynamic_tests(geom: AircraftGeometry, name: str) -> list[DynamicTest]:
+    """The dynamic tests of aircraft ``name`` (its geometry ``geom``): its flight-test results file
+    with the snapshots' initial conditions."""
+    missing = [k for k in ("flight_test", "flight_test_results") if k not in geom.data_files]
+    if missing or geom.control_travel_file is None:
+        raise ModelError(f"aircraft/{name}/geometry.toml names no {', '.join(missing) or 'control travel'} "
+                         "([data] table): no dynamic tests")
+    return load_dynamic_tests(geom.data_files["flight_test_results"], geom.data_files["flight_test"],
+                              load_control_travel(geom.control_travel_file))

@@ -65,7 +65,7 @@ def torque_shape(r_over_R, dQ_dr, radius_m: float) -> tuple[np.ndarray, np.ndarr
     r/R from 0 to 1."""
     x = np.asarray(r_over_R, float)
     q = np.nan_to_num(np.asarray(dQ_dr, float)) * radius_m
-    total = float(np.sum(0.5 * (q[1:] + q[:-1]) * np.diff(x)))
+    total = float(np.trapezoid(q, x))
     if not total > 0.0:
         raise ValueError("torque_shape: the blade absorbs no torque at this point")
     return x, q / total
@@ -126,7 +126,7 @@ def fin_swirl_arm(g: TailGeometry, tc) -> np.ndarray:
         z = np.linspace(lo, top, FIN_POINTS) / g.radius_m
         arm = swirl_arm(z, t, g.torque_shape)
         height = (g.fin_tip_m - g.fin_root_m) / g.radius_m
-        out.append(float(np.sum(0.5 * (arm[1:] + arm[:-1]) * np.diff(z)) / height))
+        out.append(float(np.trapezoid(arm, z)) / height)
     return np.array(out) if np.ndim(tc) else np.array(out[0])
 
 

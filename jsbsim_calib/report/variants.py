@@ -26,9 +26,10 @@ def _cell(v) -> str:
 
 def table(results: Sequence[VariantResult]) -> tuple[list[str], list[list[str]]]:
     """Header and rows: one row per figure, one column per variant."""
-    labels = list(dict.fromkeys(k for r in results for k in r.rows()))
+    rows = [r.rows() for r in results]
+    labels = list(dict.fromkeys(k for row in rows for k in row))
     head = ["figure"] + [r.variant.name for r in results]
-    return head, [[k] + [_cell(r.rows().get(k)) for r in results] for k in labels]
+    return head, [[k] + [_cell(row.get(k)) for row in rows] for k in labels]
 
 
 def _better(label: str, new: float, old: float) -> bool | None:
