@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
@@ -17,8 +17,8 @@ import numpy as np
 
 from .data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicMetric,
                                  DynamicTest)
-from .data.flighttest import ControlAxis
-from .data.timehistory import TimeHistory, load_time_histories, maneuver_from_time_history
+from .data.flighttest import ControlAxis, to_jsbsim_sign
+from .data.timehistory import SURFACE_OF, TimeHistory, load_time_histories, maneuver_from_time_history
 from .errors import CalibError
 from .evaluate import MetricSummary, Summary
 from .executor import SERIAL, Executor
@@ -101,6 +101,7 @@ class RecordedTest:
     maneuver: object
     time_s: np.ndarray
     channels: dict
+    record: dict = field(default_factory=dict)     # every recorded channel (surfaces in JSBSim's signs)
 
     def residuals(self, tr: Trajectory, channels: Sequence[str]) -> tuple[np.ndarray, list[str]]:
         """(model - recorded) / scale at every recorded time."""
@@ -125,7 +126,7 @@ def recorded(test_id: str, kind: str, tr: Trajectory, rate_hz: float = 10.0,
     test of a truth aircraft records."""
     t = np.arange(0.0, tr.time_s[-1] + 1e-9, 1.0 / rate_hz)
     at = tr.at(t)
-    return RecordedTest(test_id, kind, tr.maneuver, t, {c: at[c] for c in channels})
+    return RecordedTest(test_id, kind, tr.maneuver, t, {c: at[c] for c in channels}, dict(at))
 
 
 def recorded_test(th: TimeHistory, travel: Mapping[str, ControlAxis] | None = None) -> RecordedTest:
@@ -136,7 +137,11 @@ def recorded_test(th: TimeHistory, travel: Mapping[str, ControlAxis] | None = No
     maneuver = maneuver_from_time_history(th, pilot=th.meta.pilot, travel=travel)
     t = th.time_s - th.time_s[0]
     channels = {c: th.channel(c) for c in CHANNEL_SCALES if c in th.channels}
-    return RecordedTest(th.meta.test_id, th.meta.kind, maneuver, t, channels)
+    record = {c: th.channel(c) for c in th.channels if c != "time_s"}
+    for c, surface in SURFACE_OF.items():
+        if c in record:
+            record[c] = to_jsbsim_sign(surface, record[c])
+    return RecordedTest(th.meta.test_id, th.meta.kind, maneuver, t, channels, record)
 
 
 def load_recorded_tests(dir_or_files, travel: Mapping[str, ControlAxis] | None = None) -> list[RecordedTest]:

@@ -11,16 +11,22 @@ flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.dy
    :data:`jsbsim_calib.dynamics.CHANNEL_SCALES`) and more than the noise could give (a
    chi-square test); an axis (:data:`jsbsim_calib.dynamics.AXIS_CHANNELS`) when one of its
    channels is;
-2. for every library effect that acts on a structured axis (:func:`effect_axis`: the axis of
-   the force or moment it adds; roll and yaw are coupled, so a lateral effect acts on both):
-   add it to a copy of the aircraft, fit its factor(s) alone on all the tests (residuals
+2. screen the candidates of the most structured axis by equation error (:func:`screen`,
+   :mod:`.equation_error`: the model's moment at every recorded state against the moment
+   the recorded motion needs; no flight): the library effects acting on it, the stage-2b
+   factors of the axis, its moment of inertia and the dictionary's terms (rates times states,
+   alpha-dot, deflections times states). The :data:`FINALISTS` strongest named candidates are
+   flown; the sparse selection of terms (one synthesized effect; a single term of a factor's
+   form is that factor) is flown only when no named candidate passes. Each finalist
+   (:class:`Change`: an effect or term added, a factor refitted alone, an inertia scaled)
+   is fitted alone on all the tests (residuals
    (model - data)/scale at every recorded sample of every response channel) and score it with
    the trim loop's rules (:func:`.closeloop.evidence_failures`,
    :func:`.closeloop.pays_off_out_of_sample`): BIC change <= -10 with each channel's residuals
    scaled by its noise, at least 60 % of the structured residual of the channels it moves
    explained (net of what it spoils elsewhere), a material change of some sample, and a 10 %
    gain in cross-validation whose folds are whole maneuvers (:data:`CV_FOLDS`);
-3. add the best, refit its factors with the stage-2b factors of its axis
+3. add the best (:func:`_add`), refit its factors with the stage-2b factors of its axis
    (``step_factors("yaw dynamics")`` ...; those it duplicates, ``same_as``, excepted; the
    prior of the stage-2b steps about where they stand), repeat until nothing passes;
 4. fly again: before and after per axis and channel; what is still structured is reported
@@ -49,6 +55,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy import stats
+from scipy.optimize import minimize_scalar
 
 from ..data.flighttest import load_control_travel
 from ..data.timehistory import CHANNELS
@@ -63,7 +70,11 @@ from .closeloop import (MATERIAL, MIN_EVIDENCE, MIN_EXPLAINED, MIN_HELD_GAIN, NO
                         evidence_failures, pays_off_out_of_sample)
 from .diagnose import ALPHA, Correlate
 from .effects import LIBRARY_DIR, Effect, library
+from .equation_error import Column, Ranked, effect_columns, equation_error, factor_columns, inertia_columns, rank, \
+    term_columns
 from .fit import LEGS, FitResult, fit
+from .synthesis import EFFECT_PREFIX, Linearization, Selection, dictionary, select, term_effect
+from .terms import SAME_FORM
 from .trims import STEP_PRIOR
 
 DYNAMIC_LIBRARY_DIR = LIBRARY_DIR / "dynamic"
@@ -73,6 +84,12 @@ CANDIDATE_NFEV = 40          # function evaluations of a candidate's fit (one fa
 REFIT_NFEV = 80
 MIN_SAMPLES = 10             # samples a channel needs to be diagnosed
 MIN_CORRELATION = 0.3        # |r| of a state or input listed as a correlate
+FINALISTS = 3                # named candidates flown per round (the strongest by equation error)
+SCREEN_LISTED = 12           # ranked candidates a report lists per round
+INERTIA_SCALES = (0.4, 2.5)  # the range a moment of inertia may be scaled over
+EE_AXES_OF = {"roll": ("ROLL",), "yaw": ("YAW",), "pitch": ("PITCH",)}   # LIFT: alpha's noise dominates it
+AXIS_OF_EE = {"ROLL": "roll", "YAW": "yaw", "PITCH": "pitch", "LIFT": "pitch"}
+INERTIA_OF = {"roll": "ixx", "pitch": "iyy", "yaw": "izz"}
 CHANNEL_AXIS = {c: a for a, chans in AXIS_CHANNELS.items() for c in chans}
 MOMENT_AXIS = {"ROLL": "roll", "YAW": "yaw", "SIDE": "yaw", "PITCH": "pitch", "LIFT": "pitch", "DRAG": "pitch"}
 COUPLED = {"roll": ("roll", "yaw"), "yaw": ("roll", "yaw"), "pitch": ("pitch",)}
@@ -126,8 +143,7 @@ def acts_on(eff: Effect) -> tuple[str, ...]:
 
 def companion_factors(eff: Effect) -> list[str]:
     """The stage-2b factors of the effect's axis (not those it duplicates, ``same_as``)."""
-    axis = effect_axis(eff)
-    return [f for f in step_factors(f"{axis} dynamics") if f not in eff.same_as] if axis else []
+    return Change.of_effect(eff).companions()
 
 
 # --------------------------------------------------------------------------- flying the tests
@@ -390,13 +406,15 @@ class DynamicCandidate:
     cv: tuple[float, float] | None = None  # cross-validated residual sum of squares, without and with
     accepted: bool = False
     reason: str = ""
+    kind: str = "effect"                   # effect | term | factor | inertia (:class:`Change`)
 
     @property
     def score(self) -> float:
         return -self.delta_bic
 
     def as_dict(self) -> dict:
-        return {"effect": self.effect, "round": self.round, "axis": self.axis, "score": _js(self.score),
+        return {"effect": self.effect, "kind": self.kind, "round": self.round, "axis": self.axis,
+                "score": _js(self.score),
                 "factor": dict(self.factors), "stderr": {k: _js(v) for k, v in self.stderr.items()},
                 "delta_bic": _js(round(self.delta_bic, 3)), "rss": [_js(x) for x in self.rss],
                 "n_samples": self.n_samples, "material": _js(round(self.material, 3)),
@@ -427,62 +445,241 @@ def _start_round(number: int, responses: Sequence[Response], diag: dict[str, Cha
     return _Round(number, diag, r, v, per, structure)
 
 
-def _fit_candidate(current: Simulator, eff: Effect, factors: FactorSet, tests: Sequence[RecordedTest]
-                   ) -> tuple[Simulator, FitResult]:
-    """A copy of ``current`` with ``eff`` added and its factor(s) fitted alone on ``tests``
-    (the caller closes the copy)."""
+# --------------------------------------------------------------------------- candidate changes
+@dataclass(frozen=True)
+class Change:
+    """A candidate change of the model: a library effect or a synthesized term (its XML added,
+    its own factors fitted), an existing calibration factor refitted alone, or a moment of
+    inertia scaled (the aircraft file's ``mass_balance``)."""
+
+    name: str
+    kind: str                            # effect | term | factor | inertia
+    axis: str                            # roll | pitch | yaw: the axis of its force or moment
+    effect: Effect | None = None
+    target: str = ""                     # factor: its name; inertia: ixx, iyy or izz
+
+    @classmethod
+    def of_effect(cls, eff: Effect, kind: str = "effect") -> "Change":
+        return cls(eff.name, kind, effect_axis(eff) or "", eff)
+
+    @property
+    def k(self) -> int:
+        """Its number of fitted coefficients."""
+        return len(self.effect.factors) if self.effect is not None else 1
+
+    def acts_on(self) -> tuple[str, ...]:
+        return COUPLED.get(self.axis, ())
+
+    def companions(self) -> list[str]:
+        """Stage-2b factors refitted with it once added (those it duplicates excepted)."""
+        same = self.effect.same_as if self.effect is not None else ()
+        return [f for f in step_factors(f"{self.axis} dynamics") if f not in same] if self.axis else []
+
+
+@dataclass
+class Fitted:
+    """A change fitted alone: its values (effect factors by label; a factor by name; an inertia
+    as ``<axis>_scale``), their standard errors, and the factor set the trial flies."""
+
+    values: dict[str, float]
+    stderr: dict[str, float | None]
+    factors: FactorSet
+
+
+def _fit_effect(current: Simulator, ch: Change, factors: FactorSet, tests) -> tuple[Simulator, Fitted]:
     trial = current.clone()
     try:
-        trial.add_effect(eff)
-        extra = eff.as_factors()
+        trial.add_effect(ch.effect)
+        extra = ch.effect.as_factors()
         start = factors.with_extra(extra)
         trial.set_factors(start)
-        fr = fit(f"candidate {eff.name}", list(extra), start, _residual_function(trial, tests), sim=trial,
+        fr = fit(f"candidate {ch.name}", list(extra), start, _residual_function(trial, tests), sim=trial,
                  prior=STEP_PRIOR, prior_center=start, legs=LEGS[-2:], max_nfev=CANDIDATE_NFEV)
+        trial.set_factors(fr.final)
     except BaseException:
         trial.close()
         raise
-    trial.set_factors(fr.final)
-    return trial, fr
+    return trial, Fitted({k: fr.final[k] for k in extra}, dict(fr.stderr), fr.final)
 
 
-def _score(start: _Round, eff: Effect, fr: FitResult, responses: Sequence[Response]) -> DynamicCandidate:
+def _fit_factor(current: Simulator, ch: Change, factors: FactorSet, tests) -> tuple[Simulator, Fitted]:
+    """An existing factor fitted alone, without a prior: the data say where it stands."""
+    trial = current.clone()
+    try:
+        fr = fit(f"candidate {ch.name}", [ch.target], factors, _residual_function(trial, tests), sim=trial,
+                 prior=0.0, legs=LEGS[-2:], max_nfev=CANDIDATE_NFEV)
+        trial.set_factors(fr.final)
+    except BaseException:
+        trial.close()
+        raise
+    return trial, Fitted({ch.target: fr.final[ch.target]}, dict(fr.stderr), fr.final)
+
+
+def _fit_inertia(current: Simulator, ch: Change, factors: FactorSet, tests) -> tuple[Simulator, Fitted]:
+    """A moment of inertia scaled by the factor that minimizes the residuals (bounded Brent
+    search over :data:`INERTIA_SCALES`: one reload and one flight of the tests per evaluation)."""
+    trial = current.clone()
+    try:
+        base = trial.moment_of_inertia(ch.target)
+
+        def cost(s: float) -> float:
+            trial.set_moment_of_inertia(ch.target, base * s)
+            r = _stack(fly_all(trial, tests))[0]
+            return float(r @ r)
+
+        best = minimize_scalar(cost, bounds=INERTIA_SCALES, method="bounded",
+                               options={"xatol": 1e-3, "maxiter": CANDIDATE_NFEV})
+        trial.set_moment_of_inertia(ch.target, base * float(best.x),
+                                    f"close-loop: {ch.target} x {float(best.x):.4g} (fitted to the time histories)")
+    except BaseException:
+        trial.close()
+        raise
+    return trial, Fitted({f"{ch.target}_scale": float(best.x)}, {}, factors)
+
+
+FITS = {"effect": _fit_effect, "term": _fit_effect, "factor": _fit_factor, "inertia": _fit_inertia}
+
+
+def fit_change(current: Simulator, ch: Change | Effect, factors: FactorSet, tests) -> tuple[Simulator, Fitted]:
+    """A copy of ``current`` with the change fitted alone on ``tests`` (the caller closes it)."""
+    ch = Change.of_effect(ch) if isinstance(ch, Effect) else ch
+    return FITS[ch.kind](current, ch, factors, tests)
+
+
+def _score(start: _Round, ch: Change, fitted: Fitted, responses: Sequence[Response]) -> DynamicCandidate:
     """A fitted candidate scored against the round's start: evidence, materiality, explained share."""
-    r1, v1, ch = _stack(responses)
-    per1 = _per_channel(r1, ch)
+    r1, v1, ch_rows = _stack(responses)
+    per1 = _per_channel(r1, ch_rows)
     explained = {c: (start.per_channel[c] - per1.get(c, 0.0)) / s for c, s in start.structure.items() if s > 0}
-    own = sum(s for c, s in start.structure.items() if CHANNEL_AXIS[c] in acts_on(eff))
+    own = sum(s for c, s in start.structure.items() if CHANNEL_AXIS[c] in ch.acts_on())
     rss0, rss1 = float(start.residuals @ start.residuals), float(r1 @ r1)
     share = (rss0 - rss1) / own if own > 0 else 0.0
     chi = sum((start.per_channel[c] - per1.get(c, 0.0)) / noise_in_scales(start.diagnosis[c]) ** 2
               for c in start.per_channel if c in start.diagnosis)
-    dbic = -chi + len(eff.factors) * math.log(max(2, r1.size))
+    dbic = -chi + ch.k * math.log(max(2, r1.size))
     dv = np.abs(v1 - start.values)
     material = float(np.nanmax(dv)) if np.any(np.isfinite(dv)) else math.nan
-    c = DynamicCandidate(eff.name, start.number, effect_axis(eff) or "", {k: fr.final[k] for k in eff.as_factors()},
-                         dict(fr.stderr), (rss0, rss1), int(r1.size), dbic, material, explained, share)
+    c = DynamicCandidate(ch.name, start.number, ch.axis, dict(fitted.values), dict(fitted.stderr), (rss0, rss1),
+                         int(r1.size), dbic, material, explained, share, kind=ch.kind)
     c.reason = "; ".join(evidence_failures(dbic, material, own, share))
     return c
 
 
-def _candidates(start: _Round, current: Simulator, lib: Mapping[str, Effect], factors: FactorSet,
+# --------------------------------------------------------------------------- the screen (equation error)
+def _columns(current: Simulator, lib: Mapping[str, Effect], axes: Sequence[str]) -> tuple[list[Column], dict]:
+    """The candidates of the structured axes as equation-error columns: library effects acting
+    on them, the stage-2b factors of those axes, their moments of inertia, and the dictionary's
+    terms of their aerodynamic axes (those the aircraft has excepted)."""
+    effects = {n: e for n, e in lib.items() if n not in current.effects and set(acts_on(e)) & set(axes)
+               and not n.startswith(EFFECT_PREFIX)}
+    factors = list(dict.fromkeys(f for a in axes for f in step_factors(f"{a} dynamics")))
+    ee_axes = [x for a in axes for x in EE_AXES_OF[a]]
+    terms = dictionary(dict.fromkeys(ee_axes), exclude=current.effect_values, dynamic=True)
+    inertia = [c for c in inertia_columns() if c.target in {INERTIA_OF[a] for a in axes}]
+    return term_columns(terms) + factor_columns(current.factors, factors) + effect_columns(effects) + inertia, effects
+
+
+def primary_axis(diag: Mapping[str, ChannelDiagnosis]) -> str:
+    """The axis whose channels are most structured (RMS beyond noise, in scales): a missing
+    effect shows most on its own axis, and a round works on one axis (the next round on the
+    next, once this one is explained)."""
+    def beyond(d: ChannelDiagnosis) -> float:
+        b = math.sqrt(max(0.0, d.rms ** 2 - d.noise ** 2)) / d.scale
+        return b if math.isfinite(b) else 0.0
+    return max((d for d in diag.values() if d.structured), key=beyond).axis
+
+
+def _on_axes(lin: Linearization, ee_axes: Sequence[str]) -> Linearization:
+    keep = [i for i, m in enumerate(lin.metric) if m in ee_axes]
+    return Linearization(lin.terms, lin.residual[keep], lin.sensitivity[keep], lin.weight[keep],
+                         tuple(lin.group[i] for i in keep), tuple(lin.metric[i] for i in keep), lin.notes)
+
+
+def _terms_only(lin: Linearization) -> Linearization:
+    idx = [j for j, c in enumerate(lin.terms) if c.kind == "term"]
+    return Linearization(tuple(lin.terms[j].term for j in idx), lin.residual, lin.sensitivity[:, idx], lin.weight,
+                         lin.group, lin.metric, lin.notes)
+
+
+@dataclass
+class Screen:
+    """A round's equation-error screen: every candidate ranked, the finalists flown."""
+
+    round: int
+    axes: tuple[str, ...]
+    rows: int
+    ranked: list[Ranked]
+    selection: Selection | None
+    finalists: list[str]
+    wall_time_s: float
+
+    def as_dict(self) -> dict:
+        return {"round": self.round, "axes": list(self.axes), "rows": self.rows,
+                "ranked": [r.as_dict() for r in self.ranked[:SCREEN_LISTED]],
+                "selection": self.selection.as_dict() if self.selection else None,
+                "finalists": self.finalists, "wall_time_s": self.wall_time_s}
+
+
+def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests, diag) -> tuple[Screen, list[Change]]:
+    """Rank every candidate of the structured axes by equation error (module
+    :mod:`.equation_error`), then keep the finalists to fly: the :data:`FINALISTS` strongest
+    named candidates (effects, factors, inertias) and the sparse selection of dictionary terms,
+    as one synthesized effect (a term of the same form as a factor is that factor)."""
+    t0 = time.perf_counter()
+    axes = (primary_axis(diag),)
+    cols, effects = _columns(current, lib, axes)
+    ee_axes = tuple(dict.fromkeys(x for a in axes for x in EE_AXES_OF[a]))
+    lin = _on_axes(equation_error(current, tests, cols, effects), ee_axes)
+    ranked = rank(lin)
+    named = [r for r in ranked if r.kind != "term"][:FINALISTS]
+    changes = [_named_change(r, effects) for r in named]
+    sel = select(_terms_only(lin)) if lin.residual.size else None
+    if sel is not None and sel.terms:
+        changes.append(_synthesized_change(sel, lin, tests, changes))
+    changes = list({c.name: c for c in changes if c is not None}.values())
+    return Screen(rnd, tuple(axes), int(lin.residual.size), ranked, sel, [c.name for c in changes],
+                  time.perf_counter() - t0), changes
+
+
+def _named_change(r: Ranked, effects: Mapping[str, Effect]) -> Change:
+    if r.kind == "effect":
+        return Change.of_effect(effects[r.target])
+    axis = AXIS_OF_EE[r.axes[0]] if r.kind == "factor" else next(a for a, i in INERTIA_OF.items() if i == r.target)
+    if r.kind == "factor":
+        axis = next((a for a in ("roll", "pitch", "yaw") if r.target in step_factors(f"{a} dynamics")), axis)
+    return Change(f"{r.kind} {r.target}", r.kind, axis, target=r.target)
+
+
+def _synthesized_change(sel: Selection, lin: Linearization, tests, named: list[Change]) -> Change | None:
+    """The selected terms as an effect; a single term of the same form as a factor is that
+    factor (already a finalist, or added as one)."""
+    if len(sel.terms) == 1 and SAME_FORM.get((sel.terms[0].axis, sel.terms[0].regressor)):
+        f = SAME_FORM[(sel.terms[0].axis, sel.terms[0].regressor)][0]
+        axis = next((a for a in ("roll", "pitch", "yaw") if f in step_factors(f"{a} dynamics")), None)
+        if axis is None:
+            return None
+        return Change(f"factor {f}", "factor", axis, target=f)
+    moved = tuple(dict.fromkeys(AXIS_OF_EE[t.axis] for t in sel.terms))
+    eff = term_effect(sel.terms, sel.coefficients, source=f"{len(tests)} time histories (equation error)",
+                      affects=[c for a in moved for c in AXIS_CHANNELS[a]])
+    return Change(eff.name, "term", moved[0], eff)
+
+
+def _candidates(start: _Round, current: Simulator, changes: Sequence[Change], factors: FactorSet,
                 tests: Sequence[RecordedTest], say) -> list[DynamicCandidate]:
-    """Every library effect the model lacks that acts on a structured axis, fitted and scored."""
-    axes = set(structured_axes(start.diagnosis))
+    """The finalists, each fitted alone by flying the tests and scored."""
     tried = []
-    for name, eff in lib.items():
-        if name in current.effects or not set(acts_on(eff)) & axes:
-            continue
+    for ch in changes:
         try:
-            trial, fr = _fit_candidate(current, eff, factors, tests)
+            trial, fitted = fit_change(current, ch, factors, tests)
         except CalibError as exc:                    # a candidate that breaks the model is rejected
-            say(f"round {start.number}: {name}: fit failed ({exc})")
+            say(f"round {start.number}: {ch.name}: fit failed ({exc})")
             continue
         with trial:
-            c = _score(start, eff, fr, fly_all(trial, tests))
+            c = _score(start, ch, fitted, fly_all(trial, tests))
         tried.append(c)
-        say(f"round {start.number}: {name:26s} BIC {c.delta_bic:+11.1f}  explains {100 * c.share:5.0f} %  "
-            f"{'passes the fit tests' if not c.reason else 'rejected'}")
+        say(f"round {start.number}: {ch.name:34s} BIC {c.delta_bic:+11.1f}  explains {100 * c.share:5.0f} %  "
+            f"{'passes the fit tests' if not c.reason else 'rejected: ' + c.reason}")
     return tried
 
 
@@ -492,27 +689,28 @@ def maneuver_folds(n_tests: int, folds: int = CV_FOLDS) -> list[list[int]]:
     return [[i for i in range(n_tests) if i % k == f] for f in range(k)]
 
 
-def cross_validate(current: Simulator, eff: Effect, factors: FactorSet, tests: Sequence[RecordedTest]) -> float:
-    """Residual sum of squares of every maneuver predicted by a fit of ``eff`` that did not see
-    it; NaN with fewer than two maneuvers (nothing to predict from)."""
+def cross_validate(current: Simulator, ch: Change | Effect, factors: FactorSet, tests: Sequence[RecordedTest]) -> float:
+    """Residual sum of squares of every maneuver predicted by a fit of the change that did not
+    see it; NaN with fewer than two maneuvers (nothing to predict from)."""
     folds = maneuver_folds(len(tests))
     if len(folds) < 2:
         return math.nan
     total = 0.0
     for held in folds:
-        trial, _ = _fit_candidate(current, eff, factors, [t for i, t in enumerate(tests) if i not in held])
+        trial, _ = fit_change(current, ch, factors, [t for i, t in enumerate(tests) if i not in held])
         with trial:
             r = _stack(fly_all(trial, [tests[i] for i in held]))[0]
         total += float(r @ r)
     return total
 
 
-def _best_out_of_sample(tried: list[DynamicCandidate], start: _Round, current: Simulator, lib: Mapping[str, Effect],
-                        factors: FactorSet, tests: Sequence[RecordedTest], say) -> DynamicCandidate | None:
+def _best_out_of_sample(tried: list[DynamicCandidate], start: _Round, current: Simulator,
+                        changes: Mapping[str, Change], factors: FactorSet, tests: Sequence[RecordedTest],
+                        say) -> DynamicCandidate | None:
     """The strongest candidate that passed the fit tests and pays off in cross-validation."""
     cv0 = float(start.residuals @ start.residuals)
     for c in sorted((c for c in tried if not c.reason), key=lambda c: c.delta_bic):
-        cv1 = cross_validate(current, lib[c.effect], factors, tests)
+        cv1 = cross_validate(current, changes[c.effect], factors, tests)
         c.cv = (cv0, cv1)
         if pays_off_out_of_sample(cv0, cv1):
             return c
@@ -522,13 +720,20 @@ def _best_out_of_sample(tried: list[DynamicCandidate], start: _Round, current: S
     return None
 
 
-def _add(current: Simulator, eff: Effect, factors: FactorSet,
-         values: Mapping[str, float]) -> tuple[Simulator, FactorSet]:
-    """A copy of ``current`` with ``eff`` added at its fitted values."""
+def _add(current: Simulator, ch: Change, factors: FactorSet, cand: DynamicCandidate) -> tuple[Simulator, FactorSet]:
+    """A copy of ``current`` with the change at its fitted values."""
     trial = current.clone()
     try:
-        trial.add_effect(eff)
-        fs = factors.with_extra(eff.as_factors(), values)
+        if ch.effect is not None:
+            trial.add_effect(ch.effect)
+            fs = factors.with_extra(ch.effect.as_factors(), cand.factors)
+        elif ch.kind == "factor":
+            fs = factors.updated(cand.factors)
+        else:
+            s = cand.factors[f"{ch.target}_scale"]
+            trial.set_moment_of_inertia(ch.target, trial.moment_of_inertia(ch.target) * s,
+                                        f"close-loop: {ch.target} x {s:.4g} (fitted to the time histories)")
+            fs = factors
         trial.set_factors(fs)
     except BaseException:
         trial.close()
@@ -536,14 +741,14 @@ def _add(current: Simulator, eff: Effect, factors: FactorSet,
     return trial, fs
 
 
-def _refit(rnd: int, current: Simulator, lib: Mapping[str, Effect], added: list[str], factors: FactorSet,
+def _refit(rnd: int, current: Simulator, added: list[Change], factors: FactorSet,
            tests: Sequence[RecordedTest], say) -> FitResult:
     """Every added effect refitted with the stage-2b factors of its axis."""
     names = list(factors.extra)
-    for e in added:
-        names += [f for f in companion_factors(lib[e]) if f not in names]
-    say(f"round {rnd}: added {added[-1]}; refit of {', '.join(names)}")
-    return fit(f"refit after {added[-1]}", names, factors, _residual_function(current, tests), sim=current,
+    for ch in added:
+        names += [f for f in ch.companions() if f not in names]
+    say(f"round {rnd}: added {added[-1].name}; refit of {', '.join(names)}")
+    return fit(f"refit after {added[-1].name}", names, factors, _residual_function(current, tests), sim=current,
                prior=STEP_PRIOR, prior_center=factors, legs=LEGS[-2:], max_nfev=REFIT_NFEV)
 
 
@@ -567,6 +772,7 @@ class CloseLoopDynamicResult:
     aircraft_tree: Tree
     wall_time_s: float
     notes: list[str] = field(default_factory=list)
+    screens: list[Screen] = field(default_factory=list)
 
     def errors(self, which: str) -> dict[str, dict[str, ChannelError]]:
         """'before' or 'after': axis -> channel -> error over all tests."""
@@ -589,7 +795,8 @@ class CloseLoopDynamicResult:
                 "diagnosis_before": {c: d.as_dict() for c, d in self.diagnosis_before.items()},
                 "diagnosis_after": {c: d.as_dict() for c, d in self.diagnosis_after.items()},
                 "factors": {n: self.factors[n] for n in self.factors.extra},
-                "refits": [r.summary() for r in self.refits], "rules": RULES, "notes": self.notes}
+                "refits": [r.summary() for r in self.refits], "rules": RULES, "notes": self.notes,
+                "screens": [x.as_dict() for x in self.screens], "wall_time_s": self.wall_time_s}
 
 
 def _test_dict(r: Response) -> dict:
@@ -616,10 +823,20 @@ def check_tests(tests: Sequence[RecordedTest]) -> None:
 
 
 def _round(rnd: int, current: Simulator, factors: FactorSet, lib: Mapping[str, Effect], tests, diag, responses,
-           say) -> tuple[list[DynamicCandidate], DynamicCandidate | None]:
+           say) -> tuple[Screen, list[DynamicCandidate], DynamicCandidate | None, dict[str, Change]]:
     start = _start_round(rnd, responses, diag)
-    tried = _candidates(start, current, lib, factors, tests, say)
-    best = _best_out_of_sample(tried, start, current, lib, factors, tests, say)
+    scr, changes = screen(rnd, current, lib, tests, diag)
+    say(f"round {rnd}: equation error on {scr.rows} rows of {', '.join(scr.axes)} in {scr.wall_time_s:.1f} s; "
+        f"finalists: {', '.join(scr.finalists) or 'none'}")
+    by_name = {c.name: c for c in changes}
+    # named candidates first (effects, factors, inertias); a term is synthesized only when none explains
+    named = [c for c in changes if c.kind != "term"]
+    tried = _candidates(start, current, named, factors, tests, say)
+    best = _best_out_of_sample(tried, start, current, by_name, factors, tests, say)
+    if best is None:
+        terms = _candidates(start, current, [c for c in changes if c.kind == "term"], factors, tests, say)
+        tried += terms
+        best = _best_out_of_sample(terms, start, current, by_name, factors, tests, say)
     if best is not None:
         best.accepted = True
         best.reason = (f"accepted: strongest evidence; out of sample {best.cv[0]:.3g} -> {best.cv[1]:.3g} "
@@ -627,7 +844,7 @@ def _round(rnd: int, current: Simulator, factors: FactorSet, lib: Mapping[str, E
         for c in tried:
             if not c.reason:
                 c.reason = f"passes the fit tests; weaker evidence than {best.effect}"
-    return tried, best
+    return scr, tried, best, by_name
 
 
 def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects: Mapping[str, Effect] | None = None,
@@ -644,7 +861,7 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
     diag0 = diagnose_responses(before)
     for c, d in diag0.items():
         say(f"diagnosis {c}: {'STRUCTURED' if d.structured else 'noise'}: {d.reason}")
-    candidates, added, refits = [], [], []
+    candidates, added, refits, screens = [], [], [], []
     with ExitStack() as boxes:
         current = boxes.enter_context(sim.clone())
         factors, responses, diag = current.factors, before, diag0
@@ -652,16 +869,20 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
             if not structured_axes(diag):
                 say(f"round {rnd}: no structured residual: nothing to add")
                 break
-            tried, best = _round(rnd, current, factors, lib, tests, diag, responses, say)
+            scr, tried, best, changes = _round(rnd, current, factors, lib, tests, diag, responses, say)
+            screens.append(scr)
             candidates += tried
             if best is None:
                 break
-            trial, factors = _add(current, lib[best.effect], factors, best.factors)
+            ch = changes[best.effect]
+            trial, factors = _add(current, ch, factors, best)
             boxes.enter_context(trial)
             current.close()
             current = trial
-            added.append(best.effect)
-            refits.append(_refit(rnd, current, lib, added, factors, tests, say))
+            added.append(ch)
+            if ch.effect is not None:
+                lib[ch.name] = ch.effect
+            refits.append(_refit(rnd, current, added, factors, tests, say))
             factors = refits[-1].final
             current.set_factors(factors)
             responses = fly_all(current, tests)
@@ -670,7 +891,8 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
         tree = current.aircraft_tree()
     notes = [f"{r.test.id}: not flown ({r.failure}); its samples count as failures" for r in before if r.failure]
     return CloseLoopDynamicResult(sim.name, sim.root, tests, before, after, diag0, diagnose_responses(after),
-                                  candidates, added, refits, factors, tree, time.perf_counter() - t0, notes)
+                                  candidates, [c.name for c in added], refits, factors, tree,
+                                  time.perf_counter() - t0, notes, screens)
 
 
 # --------------------------------------------------------------------------- files

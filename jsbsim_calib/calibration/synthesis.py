@@ -119,15 +119,16 @@ class Term:
                 "regressor": self.regressor, "unit": self.unit, "interpretation": self.interpretation()}
 
 
-def dictionary(axes: Iterable[str], exclude: Iterable[str] = ()) -> tuple[Term, ...]:
+def dictionary(axes: Iterable[str], exclude: Iterable[str] = (), *, dynamic: bool = False) -> tuple[Term, ...]:
     """The candidate terms of ``axes`` (every regressor that may act on each), without those
-    whose factor property is in ``exclude`` (terms the aircraft has already)."""
+    whose factor property is in ``exclude`` (terms the aircraft has already); ``dynamic``: with
+    the regressors only maneuvers reveal (rates times states, alpha-dot, deflections times states)."""
     skip = set(exclude)
     out = []
     for a in axes:
         if a not in AXES:
             raise ModelError(f"unknown axis '{a}'; axes: {', '.join(AXES)}")
-        out += [Term(a, r.name) for r in REGRESSORS.values() if a in r.axes]
+        out += [Term(a, r.name) for r in REGRESSORS.values() if a in r.axes and (dynamic or not r.dynamic)]
     return tuple(t for t in out if t.factor_property not in skip)
 
 

@@ -63,6 +63,7 @@ class Regressor:
     xml: str                    # JSBSim function language
     axes: tuple[str, ...]       # the axes it may act on
     doc: str                    # what it is, in words
+    dynamic: bool = False       # seen only in maneuvers (zero or constant in a steady straight trim)
 
 
 def _p(path: str) -> str:
@@ -112,8 +113,30 @@ def _product(a: Regressor, b: Regressor) -> Regressor:
                      f"<product>{a.xml}{b.xml}</product>", axes, f"{a.doc} times {b.doc}")
 
 
+# What time histories reveal beyond trims: the rate of change of alpha, and a damping or a
+# control power that varies with the state (rates and deflections times alpha, flaps, the
+# thrust coefficient or the dynamic pressure: cable stretch and hinge moments grow with it)
+_DYNAMIC = (
+    Regressor("alphadot c/2V", "adhat", "-", 0.005, "<product>" + _p("aero/alphadot-rad_sec") + _p("aero/ci2vel")
+              + "</product>", ("LIFT", "PITCH"), "non-dimensional rate of change of angle of attack", True),
+)
+_QBAR = Regressor("qbar", "qbar", "psf", 30.0, _p("aero/qbar-psf"), ALL, "dynamic pressure")
+_BY_NAME.update({r.name: r for r in _DYNAMIC})
+DYNAMIC_PRODUCTS = (("p b/2V", "alpha"), ("r b/2V", "alpha"), ("q c/2V", "alpha"), ("p b/2V", "flaps"),
+                    ("r b/2V", "flaps"), ("q c/2V", "flaps"), ("p b/2V", "Tc"), ("r b/2V", "Tc"), ("q c/2V", "Tc"),
+                    ("aileron", "alpha"), ("elevator", "alpha"), ("rudder", "alpha"), ("aileron", "flaps"),
+                    ("elevator", "flaps"), ("aileron", "qbar"), ("elevator", "qbar"), ("rudder", "qbar"))
+_OPERANDS = {**_BY_NAME, "qbar": _QBAR}
+
+
+def _dynamic_product(a: str, b: str) -> Regressor:
+    r = _product(_OPERANDS[a], _OPERANDS[b])
+    return Regressor(r.name, r.key, r.unit, r.scale, r.xml, r.axes, r.doc, True)
+
+
 REGRESSORS: dict[str, Regressor] = {**_BY_NAME, **{f"{a} x {b}": _product(_BY_NAME[a], _BY_NAME[b])
-                                                   for a, b in PRODUCTS}}
+                                                   for a, b in PRODUCTS},
+                                    **{f"{a} x {b}": _dynamic_product(a, b) for a, b in DYNAMIC_PRODUCTS}}
 
 # The axes a metric of trimmed flight reveals. A side force shows in a steady trim only
 # through the sideslip it takes, which the roll and yaw terms of the same regressor reproduce
@@ -174,6 +197,23 @@ INTERPRETATIONS: dict[tuple[str, str], str] = {
     ("LIFT", "Tc"): "power-induced lift: slipstream over the wing",
     ("LIFT", "flaps x Tc"): "power-induced lift of the deflected flaps in the slipstream",
     ("SIDE", "beta"): "side force due to sideslip differs from the model (CY_beta)",
+    ("PITCH", "alphadot c/2V"): "Cm_alphadot differs from the model: the downwash lag at the tail",
+    ("LIFT", "alphadot c/2V"): "CL_alphadot differs from the model: the downwash lag at the tail",
+    ("ROLL", "p b/2V x alpha"): "roll damping varies with angle of attack (Cl_p falls toward the stall)",
+    ("ROLL", "p b/2V x flaps"): "roll damping varies with the flaps",
+    ("PITCH", "q c/2V x flaps"): "pitch damping varies with the flaps",
+    ("PITCH", "q c/2V x alpha"): "pitch damping varies with angle of attack",
+    ("YAW", "r b/2V x alpha"): "yaw damping varies with angle of attack",
+    ("YAW", "p b/2V x alpha"): "yaw due to roll rate grows with angle of attack (Cn_p ~ -CL/8): the wing's "
+                               "adverse yaw in rolling flight",
+    ("ROLL", "r b/2V x alpha"): "roll due to yaw rate grows with angle of attack (Cl_r ~ CL/4)",
+    ("ROLL", "aileron x alpha"): "aileron power varies with angle of attack",
+    ("ROLL", "aileron x qbar"): "aileron power falls with dynamic pressure: cable stretch or hinge moment",
+    ("PITCH", "elevator x qbar"): "elevator power falls with dynamic pressure: cable stretch or hinge moment",
+    ("YAW", "rudder x qbar"): "rudder power falls with dynamic pressure: cable stretch or hinge moment",
+    ("YAW", "aileron x alpha"): "adverse aileron yaw grows with angle of attack (Cn_da ~ CL)",
+    ("PITCH", "elevator x alpha"): "elevator power varies with angle of attack",
+    ("PITCH", "elevator x flaps"): "elevator power varies with the flaps (downwash at the tail)",
 }
 
 # Terms of the same form as a calibration factor (those factors are not refitted with them).

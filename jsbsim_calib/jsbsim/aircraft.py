@@ -359,6 +359,26 @@ def propulsion_files(aircraft_xml_path: Path) -> dict[str, str]:
 EFFECT_SYSTEM_PREFIX = "effect: "
 
 
+INERTIA_TAGS = ("ixx", "iyy", "izz")
+
+
+def moment_of_inertia(aircraft: Tree, axis: str) -> float:
+    """An empty-aircraft moment of inertia of the file (``ixx``, ``iyy``, ``izz``) [slug ft2]."""
+    el = aircraft.getroot().find(f"mass_balance/{axis}")
+    if axis not in INERTIA_TAGS or el is None:
+        raise ModelError(f"the aircraft file has no <mass_balance><{axis}>")
+    return float(el.text)
+
+
+def set_moment_of_inertia(aircraft: Tree, axis: str, value: float, note: str = "") -> None:
+    """Write a moment of inertia into the file (slug ft2), with a comment saying why."""
+    moment_of_inertia(aircraft, axis)
+    el = aircraft.getroot().find(f"mass_balance/{axis}")
+    el.text = f" {value:.6g} "
+    if note:
+        comment(el.getparent(), note)
+
+
 def effect_constants(geometry: AircraftGeometry) -> dict[str, float]:
     """The aircraft constants an effect file may use as placeholders ({prop_radius_ft} ...)."""
     d_ft = geometry.propeller.diameter_m / 0.3048

@@ -22,7 +22,8 @@ from ..physics.mass import loading
 from ..tempdirs import make_dir
 from . import trim as trim_solver
 from .aircraft import (add_effect, add_trim_aid, declared_factors, effect_constants, effect_property_values,
-                       effect_values, set_effect_values, set_factor_values)
+                       effect_values, moment_of_inertia, set_effect_values, set_factor_values,
+                       set_moment_of_inertia)
 from .condition import Condition, TrimResult
 from .product import (AircraftPaths, Propeller, check_consistent, load_aircraft_geometry, read_bem_csv,
                       recover_product, write_aircraft)
@@ -248,6 +249,16 @@ class Simulator:
                 raise ModelError(f"the aircraft has no effect factor {k}")
             self.effect_values[k] = float(v)
             self.fdm[k] = float(v)
+
+    def set_moment_of_inertia(self, axis: str, value: float, note: str = "") -> None:
+        """Set an empty-aircraft moment of inertia (``ixx``, ``iyy``, ``izz``; slug ft2) and reload."""
+        set_moment_of_inertia(self._tree, axis, value, note)
+        self._write_sandbox(aircraft=True, propeller=False)
+        self.fdm = self._load()
+        self.trim_cache.clear()
+
+    def moment_of_inertia(self, axis: str) -> float:
+        return moment_of_inertia(self._tree, axis)
 
     @property
     def effects(self) -> list[str]:

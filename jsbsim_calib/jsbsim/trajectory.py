@@ -151,6 +151,22 @@ def _from_command(cmd: float, lo: float, hi: float) -> float:
     return cmd * hi if cmd >= 0 else cmd * -lo
 
 
+def surface_command(sim, channel: str, deg: float) -> float:
+    """A surface angle (JSBSim's sign, degrees) as the normalized command of its channel."""
+    return _to_command(deg, *_surface_range(sim, channel))
+
+
+def surface_deg(sim, channel: str, command: float) -> float:
+    """A surface channel's normalized command as its angle (JSBSim's sign, degrees)."""
+    return _from_command(command, *_surface_range(sim, channel))
+
+
+def flap_command_per_deg(sim) -> float:
+    """The change of the flap command per degree of flap."""
+    fmax = sim.geometry.wing.control("flap")
+    return 1.0 / math.degrees(fmax.deflection_max_rad) if fmax else 1.0
+
+
 def _ramp(sim, inp: Input, start: Mapping[str, float]) -> Ramp:
     """An input as a command ramp (a breakpoint added where a surface crosses zero, where the
     command's slope changes)."""
@@ -170,8 +186,7 @@ def _ramp(sim, inp: Input, start: Mapping[str, float]) -> Ramp:
         return Ramp(prop, tuple(t), tuple(_to_command(d, lo, hi) for d in v))
     prop = COMMANDS[inp.channel]
     if inp.channel == "flaps_deg":
-        fmax = sim.geometry.wing.control("flap")
-        scale = 1.0 / math.degrees(fmax.deflection_max_rad) if fmax else 1.0
+        scale = flap_command_per_deg(sim)
         base = start[prop] if inp.relative else 0.0
         return Ramp(prop, inp.time_s, tuple(base + v * scale for v in inp.value))
     base = start[prop] if inp.relative else 0.0

@@ -82,12 +82,28 @@ def _candidate_table(result: CloseLoopDynamicResult) -> list[str]:
     L = ["| round | effect | axis | BIC change | explains | cross-validated RSS | factor(s) | decision |",
          "|---:|---|---|---:|---:|---|---|---|"]
     for c in sorted(result.candidates, key=lambda c: (c.round, c.delta_bic)):
-        fac = "; ".join(f"{k.split('.', 1)[1]} = {v:.4g}" + (f" +/- {c.stderr[k]:.2g}" if c.stderr.get(k) else "")
+        fac = "; ".join(f"{k.split('.', 1)[-1]} = {v:.4g}" + (f" +/- {c.stderr[k]:.2g}" if c.stderr.get(k) else "")
                         for k, v in c.factors.items())
         cv = f"{c.cv[0]:.3g} -> {c.cv[1]:.3g}" if c.cv else "-"
         L.append(f"| {c.round} | {c.effect} | {c.axis} | {c.delta_bic:+.1f} | {100 * c.share:.0f} % | {cv} | {fac} | "
                  f"{'**added**' if c.accepted else c.reason} |")
     return L + [""]
+
+
+def _screen_table(result: CloseLoopDynamicResult) -> list[str]:
+    """Each round's equation-error ranking: what was flown and why (the strongest listed)."""
+    L = []
+    for scr in result.screens:
+        L += [f"Round {scr.round}: equation error on {scr.rows} rows ({', '.join(scr.axes)} axes, "
+              f"{scr.wall_time_s:.1f} s); flown: {', '.join(scr.finalists) or 'none'}.", "",
+              "| candidate | kind | axes | estimate | chi-square explained | share of its axes |",
+              "|---|---|---|---:|---:|---:|"]
+        for r in scr.ranked[:8]:
+            est = ", ".join(f"{x:.4g}" for x in r.estimate)
+            L.append(f"| {r.target} | {r.kind} | {', '.join(r.axes)} | {est} | {r.explained:.1f} | "
+                     f"{100 * r.share:.1f} % |")
+        L.append("")
+    return L
 
 
 def _error_table(result: CloseLoopDynamicResult) -> list[str]:
@@ -153,7 +169,7 @@ def write_close_loop_dynamic_report(result: CloseLoopDynamicResult, out_dir: Pat
     L += [_method(), "", f"**Added:** {', '.join(result.added) if result.added else 'nothing'}"
           + (f"; written to `{written}`." if written else "."), "", "## Tests", ""] + _tests_table(result)
     L += ["## Diagnosis before", ""] + _diagnosis_table(result.diagnosis_before)
-    L += ["## Candidates", ""] + (_candidate_table(result) if result.candidates else
+    L += ["## Candidates", ""] + (_screen_table(result) + _candidate_table(result) if result.candidates else
                                   ["No candidate: no axis is structured.", ""])
     if result.refits:
         L += ["## Refits after each added effect", "", "```"] + [r.report() + "\n" for r in result.refits] + ["```", ""]
