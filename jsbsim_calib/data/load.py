@@ -53,11 +53,19 @@ def _places(ds: Dataset):
     return lambda i, c: f"line {i + 2} (row {i + 1}), column '{c}'"
 
 
+def _is_g1000_log(path: Path) -> bool:
+    """A Garmin G1000 log: its first line is '#airframe_info', or (the line lost) its header
+    names 'Lcl Date' and 'Lcl Time'; a byte-order mark or UTF-16 as any CSV."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    utf16 = head.startswith((b"\xff\xfe", b"\xfe\xff"))
+    text = head.decode("utf-16" if utf16 else "utf-8-sig", errors="ignore").lstrip()
+    first = text.splitlines()[:3]
+    return text.startswith("#airframe_info") or any("Lcl Date" in ln and "Lcl Time" in ln for ln in first)
+
+
 def _load(path: Path, kind: str | None, control_travel, geometry) -> Dataset:
-    if path.is_file():
-        with open(path, "rb") as fh:
-            head = fh.read(64)
-        if head.lstrip().startswith(b"#airframe_info"):
+    if path.is_file() and _is_g1000_log(path):
             if geometry is None:
                 raise DataError(path, "a G1000 log is evaluated for an aircraft: its empty weight enters the "
                                       "weight estimate (pass geometry=...)")
