@@ -38,6 +38,7 @@ from .jsbsim.probes import report
 from .jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration, write_calibrated
 from .jsbsim.simulator import Simulator
 from .physics.airfoil import regenerate
+from .preflight import command_problems
 from .report.markdown import (write_close_loop_report, write_dynamic_report, write_evaluation_report, write_log_report,
                               write_steady_report, write_trims_report)
 from .report.text import evaluation_table, format_stability, format_summary
@@ -675,6 +676,7 @@ def _run(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise InputError("command line", Problem("--workers", f"{args.workers}: give at least 1"))
     problems = path_problems(args)
+    problems += command_problems(args) if not problems else []
     if problems:
         raise InputError("command line", problems)
     with make_executor(args.executor, args.workers, args.scheduler) as args.pool:
