@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import DataError, Problem
+from ..errors import DataError, Problem, raise_if
+from .column_units import declared_units, unit_problems
 from .envelope import check_envelope
 from .flighttest import load_flight_test
 from .logs import log_dataset
@@ -37,6 +38,8 @@ def load_dataset(path: str | Path, kind: str | None = None, *, control_travel: s
     if path.is_dir():
         raise DataError(path, "is a folder; give a data file")
     ds = _load(path, kind, control_travel, geometry)
+    if ds.kind != "g1000":
+        raise_if(unit_problems(ds.frame, ds.kind, geometry), path, DataError)
     if geometry is not None:
         check_envelope(ds.frame, geometry, path, _places(ds))
     return ds
@@ -70,7 +73,8 @@ def _load(path: Path, kind: str | None, control_travel, geometry) -> Dataset:
                 raise DataError(path, "a G1000 log is evaluated for an aircraft: its empty weight enters the "
                                       "weight estimate (pass geometry=...)")
             return log_dataset(path, geometry)
-    raw = read_csv_checked(path)
+    raw, problems = declared_units(read_csv_checked(path))
+    raise_if(problems, path, DataError)
     cols = {c.strip() for c in raw.columns}
     kind = kind or _kind_of(cols)
     if kind is None:
