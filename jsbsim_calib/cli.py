@@ -34,6 +34,7 @@ from .executor import make_executor
 from .fleet import evaluate_fleet, format_fleet
 from .evaluate import evaluate_dataset
 from .generate import generate
+from .guard import command_guard, interrupted_message
 from .jsbsim.probes import report
 from .jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration, write_calibrated
 from .jsbsim.simulator import Simulator
@@ -679,7 +680,7 @@ def _run(args) -> int:
     problems += command_problems(args) if not problems else []
     if problems:
         raise InputError("command line", problems)
-    with make_executor(args.executor, args.workers, args.scheduler) as args.pool:
+    with command_guard(args), make_executor(args.executor, args.workers, args.scheduler) as args.pool:
         return args.func(args)
 
 
@@ -698,6 +699,9 @@ def main(argv=None) -> int:
     except CalibError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(interrupted_message(args), file=sys.stderr)
+        return 130
     except OSError as exc:
         if exc.filename is None:           # not a file the user named or the workbench writes: a bug
             raise
