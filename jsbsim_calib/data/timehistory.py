@@ -471,7 +471,10 @@ def load_time_histories(dir_or_files: str | Path | Sequence[str | Path]) -> list
         d = Path(dir_or_files)
         files = sorted(p for p in d.glob("*.csv") if p.with_suffix(".json").is_file())
         if not files:
-            raise DataError(d, "no time histories here (a CSV file with a JSON sidecar of the same stem)")
+            lone = sorted(d.glob("*.csv"))[:10]
+            raise DataError(d, [Problem(p.name, f"metadata sidecar missing: expected {p.with_suffix('.json').name} "
+                                                "next to it") for p in lone]
+                            or "no time histories here (a CSV file with a JSON sidecar of the same stem)")
         source = d
     else:
         items = [dir_or_files] if isinstance(dir_or_files, (str, Path)) else list(dir_or_files)
