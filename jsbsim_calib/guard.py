@@ -53,6 +53,7 @@ def aircraft_lock(folder: Path, command: str):
     """Hold ``folder/.lock`` while the block runs; :class:`LockedError` naming the holder when
     a live process holds it."""
     folder = Path(folder)
+    made = not folder.exists()
     folder.mkdir(parents=True, exist_ok=True)
     lock = folder / LOCK
     doc = {"pid": os.getpid(), "command": command, "started": time.strftime("%Y-%m-%d %H:%M:%S %z")}
@@ -77,6 +78,8 @@ def aircraft_lock(folder: Path, command: str):
     finally:
         if (_holder(lock) or {}).get("pid") == os.getpid():
             lock.unlink(missing_ok=True)
+        if made and not any(folder.iterdir()):
+            folder.rmdir()                        # made for the lock only: nothing was written
 
 
 def written_aircraft(a) -> str | None:
