@@ -34,10 +34,12 @@ from .executor import make_executor
 from .fleet import evaluate_fleet, format_fleet
 from .evaluate import evaluate_dataset
 from .generate import generate
+from .guard import command_guard, interrupted_message
 from .jsbsim.probes import report
 from .jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration, write_calibrated
 from .jsbsim.simulator import Simulator
 from .physics.airfoil import regenerate
+from .preflight import command_problems
 from .report.markdown import (write_close_loop_report, write_dynamic_report, write_evaluation_report, write_log_report,
                               write_steady_report, write_trims_report)
 from .report.text import evaluation_table, format_stability, format_summary
@@ -675,9 +677,10 @@ def _run(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise InputError("command line", Problem("--workers", f"{args.workers}: give at least 1"))
     problems = path_problems(args)
+    problems += command_problems(args) if not problems else []
     if problems:
         raise InputError("command line", problems)
-    with make_executor(args.executor, args.workers, args.scheduler) as args.pool:
+    with command_guard(args), make_executor(args.executor, args.workers, args.scheduler) as args.pool:
         return args.func(args)
 
 
@@ -696,6 +699,9 @@ def main(argv=None) -> int:
     except CalibError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(interrupted_message(args), file=sys.stderr)
+        return 130
     except OSError as exc:
         if exc.filename is None:           # not a file the user named or the workbench writes: a bug
             raise

@@ -20,6 +20,7 @@ import hashlib
 import multiprocessing
 import os
 import shutil
+import signal
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, Callable, Sequence
@@ -31,6 +32,7 @@ from .tempdirs import make_dir
 
 _CACHE: dict[str, Callable] = {}          # in a worker: unpickled functions by key
 _CACHE_LIMIT = 4
+CONNECT_TIMEOUT_S = 5            # an unreachable dask scheduler fails after this, naming its address
 
 
 def _call(key: str, payload, item):
@@ -56,6 +58,7 @@ def _close(fn) -> None:
 
 
 def _worker_init() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the parent's to handle: no worker tracebacks
     atexit.register(lambda: [_close(f) for f in _CACHE.values()])
 
 
@@ -132,7 +135,7 @@ class ProcessExecutor(Executor):
         return list(self._pool.map(_call, [digest] * len(items), [str(path)] * len(items), items))
 
     def close(self) -> None:
-        self._pool.shutdown(wait=True)
+        self._pool.shutdown(wait=True, cancel_futures=True)     # interrupted: the tasks not started dropped
         shutil.rmtree(self._dir, ignore_errors=True)
 
 
@@ -149,7 +152,11 @@ class DaskExecutor(Executor):
             raise CalibError("the dask executor needs dask.distributed: pip install 'jsbsim-calib[cluster]'") from exc
         self._cluster = None
         if scheduler:
-            self._client = Client(scheduler)
+            try:
+                self._client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+            except (OSError, TimeoutError) as exc:
+                raise CalibError(f"--scheduler {scheduler}: no dask scheduler answers there within "
+                                 f"{CONNECT_TIMEOUT_S} s ({type(exc).__name__}: {exc})") from None
         else:
             self._cluster = LocalCluster(n_workers=max(1, int(workers or os.cpu_count() or 1)), threads_per_worker=1,
                                          processes=True, dashboard_address=None)

@@ -28,7 +28,7 @@ from .data.flighttest import QuirkWarning
 from .data.load import load_dataset
 from .data.schemas import Dataset
 from .dynamics import DynamicEvaluation, evaluate_dynamic
-from .errors import ModelError
+from .errors import InputError, ModelError, Problem
 from .executor import SERIAL, Executor
 from .evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
 from .factors import FactorSet, switches
@@ -174,7 +174,8 @@ def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps:
     poh = aircraft_data(root, name)
     unknown = [s for s in skip if s not in {st.name for st in steps}]
     if unknown:
-        raise ValueError(f"unknown step(s) {', '.join(unknown)}; steps: {', '.join(st.name for st in steps)}")
+        raise InputError("command line", Problem("--skip", f"unknown step(s) {', '.join(unknown)}; steps: "
+                                                           f"{', '.join(st.name for st in steps)}"))
     with Simulator(root, name) as sim:
         start = steady_factors(sim.factors) if start is None else start
         evaluations: dict[str, dict[str, Evaluation]] = {}

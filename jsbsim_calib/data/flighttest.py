@@ -225,6 +225,22 @@ def _labels(raw: pd.DataFrame) -> list[str]:
     return [f"row {i + 1}" for i in range(len(raw))]
 
 
+def duplicate_ids(raw: pd.DataFrame) -> list[Problem]:
+    """Snapshot ids ('table') given to two different rows (an identical row is
+    :func:`.schemas.duplicate_rows`' to report)."""
+    if "table" not in raw:
+        return []
+    cells = raw.astype(str).apply(lambda c: c.str.strip())
+    first: dict[str, int] = {}
+    out = []
+    for i, t in enumerate(cells["table"]):
+        j = first.setdefault(t, i) if t else i
+        if j != i and not cells.iloc[i].equals(cells.iloc[j]):
+            out.append(Problem(f"line {i + 2} ({t}), column 'table'", f"the id {t} is also line {j + 2}'s, with other "
+                                                                     "values: give each snapshot its own id"))
+    return out
+
+
 def load_snapshots(path: Path, raw: pd.DataFrame, control_travel: str | Path | None = None) -> Dataset:
     """Validate a snapshot file; rows with quirks are left out, with a warning each."""
     cols = {c.strip() for c in raw.columns}
@@ -253,7 +269,7 @@ def load_snapshots(path: Path, raw: pd.DataFrame, control_travel: str | Path | N
             t = t.strip()
             if t and not np.isfinite(frame[c.name].iloc[i]) and t.lower() != "nan":
                 problems.append(Problem(f"line {i + 2} ({labels[i]}), column '{c.name}'", f"'{t}' is not a number"))
-    problems += duplicate_rows(raw, labels)
+    problems += duplicate_rows(raw, labels) + duplicate_ids(raw)
     if problems:
         raise DataError(path, problems)
     core = [c.name for c in SNAPSHOT_INPUTS + SNAPSHOT_VALUES]

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import DataError, Problem
+from ..errors import DataError, Problem, raise_if
+from .column_units import declared_units, unit_problems
 from .envelope import check_envelope
 from .flighttest import load_flight_test
 from .logs import log_dataset
@@ -37,6 +38,8 @@ def load_dataset(path: str | Path, kind: str | None = None, *, control_travel: s
     if path.is_dir():
         raise DataError(path, "is a folder; give a data file")
     ds = _load(path, kind, control_travel, geometry)
+    if ds.kind != "g1000":
+        raise_if(unit_problems(ds.frame, ds.kind, geometry), path, DataError)
     if geometry is not None:
         check_envelope(ds.frame, geometry, path, _places(ds))
     return ds
@@ -53,16 +56,25 @@ def _places(ds: Dataset):
     return lambda i, c: f"line {i + 2} (row {i + 1}), column '{c}'"
 
 
+def _is_g1000_log(path: Path) -> bool:
+    """A Garmin G1000 log: its first line is '#airframe_info', or (the line lost) its header
+    names 'Lcl Date' and 'Lcl Time'; a byte-order mark or UTF-16 as any CSV."""
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    utf16 = head.startswith((b"\xff\xfe", b"\xfe\xff"))
+    text = head.decode("utf-16" if utf16 else "utf-8-sig", errors="ignore").lstrip()
+    first = text.splitlines()[:3]
+    return text.startswith("#airframe_info") or any("Lcl Date" in ln and "Lcl Time" in ln for ln in first)
+
+
 def _load(path: Path, kind: str | None, control_travel, geometry) -> Dataset:
-    if path.is_file():
-        with open(path, "rb") as fh:
-            head = fh.read(64)
-        if head.lstrip().startswith(b"#airframe_info"):
+    if path.is_file() and _is_g1000_log(path):
             if geometry is None:
                 raise DataError(path, "a G1000 log is evaluated for an aircraft: its empty weight enters the "
                                       "weight estimate (pass geometry=...)")
             return log_dataset(path, geometry)
-    raw = read_csv_checked(path)
+    raw, problems = declared_units(read_csv_checked(path))
+    raise_if(problems, path, DataError)
     cols = {c.strip() for c in raw.columns}
     kind = kind or _kind_of(cols)
     if kind is None:

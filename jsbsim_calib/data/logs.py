@@ -86,6 +86,30 @@ def check_loading_for(geometry: AircraftGeometry, loading: LogLoading, weights_l
     raise_if(problems, "G1000 loading", InputError)
 
 
+MIN_RUNNING_RPM = 500.0      # below this through a segment in flight, the engine speed is not recorded
+# log channels a segment's comparison needs (its metrics), by the segment's name for them
+NEEDED_CHANNELS = {"rpm": "E1 RPM", "pitch_deg": "Pitch"}
+
+
+def channel_problems(segs) -> list[Problem]:
+    """Segments through which a channel they need is zero (the engine speed) or does not move
+    at all (a stuck or unrecorded channel: no sensor reads the same to the last digit for 30 s
+    of flight)."""
+    out = []
+    for k, s in enumerate(segs, 1):
+        where = f"segment {k} ({s.kind}, t {s.t_start_s:.0f}-{s.t_end_s:.0f} s)"
+        if not s.rpm >= MIN_RUNNING_RPM:
+            out.append(Problem(f"{where}, column '{NEEDED_CHANNELS['rpm']}'",
+                               f"{s.rpm:g} rpm through the segment: the engine speed is not recorded (or the engine "
+                               "is stopped); a segment needs it"))
+            continue
+        for name, channel in NEEDED_CHANNELS.items():
+            if s.n_samples >= 10 and s.std.get(name, 1.0) == 0.0:
+                out.append(Problem(f"{where}, column '{channel}'", f"constant at {getattr(s, name):g} for "
+                                   f"{s.n_samples} samples: a stuck or unrecorded channel"))
+    return out
+
+
 def log_dataset(path: str | Path, geometry: AircraftGeometry, loading: LogLoading = LogLoading(),
                 criteria: SegmentCriteria = SegmentCriteria(), *, require_segments: bool = True) -> Dataset:
     """The quasi-steady segments of a log as a dataset of kind ``g1000``. A log without a
@@ -101,6 +125,7 @@ def log_dataset(path: str | Path, geometry: AircraftGeometry, loading: LogLoadin
         raise DataError(path, Problem("", f"no quasi-steady segment in {log.duration_s:.0f} s of log ({len(log.data)} "
                                           "rows): nothing to compare (criteria: level cruise or full-throttle climb "
                                           "of 30 s or more, jsbsim_calib.data.g1000.segments.SegmentCriteria)"))
+    raise_if(channel_problems(segs), path, DataError)
     table = segments_dataframe(segs)
     frame = table.copy()
     frame.insert(0, "segment", np.arange(1, len(frame) + 1))

@@ -17,6 +17,7 @@ import pandas as pd
 
 from ..errors import DataError, Problem
 from ..physics.atmosphere import isa_temperature_c
+from .spreadsheet import read_sheet
 
 # A temperature further than this from ISA at the row's pressure altitude is refused: the
 # records are about +-40 deg C (the C172 POH's own climb table reaches ISA +45 at 10,000 ft);
@@ -98,12 +99,13 @@ class Dataset:
         return len(self.frame)
 
 
-def field_count_problems(path: Path) -> list[Problem]:
+def field_count_problems(path: Path, text: str | None = None) -> list[Problem]:
     """Lines whose number of fields differs from the header's (a row cut short, or shifted)."""
-    try:
-        text = Path(path).read_text()
-    except (OSError, UnicodeDecodeError):
-        return []                           # read_csv says what is wrong with the file
+    if text is None:
+        try:
+            text = Path(path).read_text()
+        except (OSError, UnicodeDecodeError):
+            return []                           # read_csv says what is wrong with the file
     rows = [r for r in csv.reader(io.StringIO(text))]
     if not rows:
         return []
@@ -111,24 +113,24 @@ def field_count_problems(path: Path) -> list[Problem]:
         warnings.warn(f"{path}: the last line has no line end: the file may be cut short (line {len(rows)})",
                       stacklevel=3)
     n = len(rows[0])
-    out = [Problem(f"line {i + 2} (row {i + 1})", f"{len(r)} fields, the header has {n} (a row cut short or shifted)")
+    out = [Problem(f"line {i + 2} (row {i + 1})", f"{len(r)} fields, the header has {n} (a row cut short or shifted"
+                   + ("; decimal commas in a comma-separated file?)" if len(r) > n else ")"))
            for i, r in enumerate(rows[1:]) if r and len(r) != n]
     return out[:10] + ([Problem("", f"and {len(out) - 10} more such rows")] if len(out) > 10 else [])
 
 
 def read_csv_checked(path: Path) -> pd.DataFrame:
-    problems = field_count_problems(path) if Path(path).is_file() else []
+    """A data table as text cells (:func:`.spreadsheet.read_sheet`: any separator, decimal
+    commas, a BOM, UTF-16, header case); DataError naming every line it cannot read."""
+    if Path(path).is_dir():
+        raise DataError(path, "is a folder; give a data file")
+    sheet = read_sheet(Path(path))
+    problems = field_count_problems(path, sheet.text)
     if problems:
         raise DataError(path, problems)
     try:
-        return pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
-    except FileNotFoundError:
-        raise DataError(path, "file not found") from None
-    except IsADirectoryError:
-        raise DataError(path, "is a folder; give a data file") from None
-    except OSError as exc:
-        raise DataError(path, f"cannot read: {exc.strerror or exc}") from None
-    except (pd.errors.ParserError, UnicodeDecodeError, pd.errors.EmptyDataError) as exc:
+        return pd.read_csv(io.StringIO(sheet.text), dtype=str, keep_default_na=False, skipinitialspace=True)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise DataError(path, f"not a readable CSV file: {exc}") from None
 
 

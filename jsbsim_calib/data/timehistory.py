@@ -42,6 +42,7 @@ from ..errors import DataError, InputError, Problem
 from ..jsbsim.condition import Condition
 from ..jsbsim.pilot import AXIS_OF_LOOP
 from ..jsbsim.trajectory import Hold, Input, Maneuver, Trajectory
+from .spreadsheet import read_sheet
 from .flighttest import SURFACE_METRICS, ControlAxis, load_control_travel, to_data_sign, to_jsbsim_sign
 
 
@@ -391,12 +392,12 @@ def check_time_history(th: TimeHistory, name: str | None = None) -> list[Problem
 
 # --------------------------------------------------------------------------- reading
 def _read_rows(path: Path) -> tuple[list[str], list[list[str]], list[Problem]]:
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
+    if not path.is_file():
         return [], [], [Problem(path.name, "file not found")]
-    except (UnicodeDecodeError, OSError) as exc:
-        return [], [], [Problem(path.name, f"not a readable text file: {exc}")]
+    try:
+        text = read_sheet(path).text        # any separator, decimal commas, BOM, UTF-16, header case
+    except DataError as exc:
+        return [], [], [Problem(path.name + (f", {p.where}" if p.where else ""), p.message) for p in exc.problems]
     rows = list(csv.reader(io.StringIO(text)))
     if not rows:
         return [], [], [Problem(path.name, "empty file (no header line)")]
@@ -470,7 +471,10 @@ def load_time_histories(dir_or_files: str | Path | Sequence[str | Path]) -> list
         d = Path(dir_or_files)
         files = sorted(p for p in d.glob("*.csv") if p.with_suffix(".json").is_file())
         if not files:
-            raise DataError(d, "no time histories here (a CSV file with a JSON sidecar of the same stem)")
+            lone = sorted(d.glob("*.csv"))[:10]
+            raise DataError(d, [Problem(p.name, f"metadata sidecar missing: expected {p.with_suffix('.json').name} "
+                                                "next to it") for p in lone]
+                            or "no time histories here (a CSV file with a JSON sidecar of the same stem)")
         source = d
     else:
         items = [dir_or_files] if isinstance(dir_or_files, (str, Path)) else list(dir_or_files)

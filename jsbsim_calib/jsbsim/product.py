@@ -401,7 +401,7 @@ def write_derived(source: AircraftPaths, aircraft: Tree, factors: FactorSet, des
     if destination.folder.resolve() != source.folder.resolve():
         destination.folder.mkdir(parents=True, exist_ok=True)
         for f in source.folder.iterdir():
-            if f.is_file() and f.suffix != ".xml" and f.name not in ("calibration.json", JOURNAL):
+            if f.is_file() and f.suffix != ".xml" and f.name not in ("calibration.json", JOURNAL, ".lock"):
                 shutil.copy(f, destination.folder / f.name)
     write_aircraft(destination, factors, aircraft=aircraft, stamp_body=clean,
                    effect_values={f.property: factors[n] for n, f in factors.extra.items()})

@@ -16,7 +16,7 @@ from typing import Mapping
 
 import jsbsim
 
-from ..errors import ModelError
+from ..errors import AircraftFileError, ModelError, Problem, raise_if
 from ..factors import PROPELLER_FACTORS, REGISTRY, FactorSet
 from ..physics.mass import loading
 from ..tempdirs import make_dir
@@ -28,7 +28,7 @@ from .condition import Condition, TrimResult
 from .product import (AircraftPaths, Propeller, check_consistent, load_aircraft_geometry, read_bem_csv,
                       recover_product, write_aircraft)
 from .propulsion import read_baked_factors
-from .xml import Tree, copy, parse, read, tostring, tree
+from .xml import Tree, copy, parse, read, structure_problems, tostring, tree
 
 INDICATED_SURFACES = ("elevator", "aileron", "rudder")    # fcs/<surface>-ind-deg, where an aircraft defines it
 
@@ -50,6 +50,8 @@ class Simulator:
         self.geometry = load_aircraft_geometry(self.root, name)
         self.bem = read_bem_csv(self.paths.propeller_bem)
         on_disk = read(self.paths.aircraft_xml)
+        raise_if([Problem(f"line {ln}" if ln else "", why) for ln, why in
+                  structure_problems(on_disk, self.root / "engine")], self.paths.aircraft_xml, AircraftFileError)
         declared = FactorSet(declared_factors(on_disk, self.paths.aircraft_xml))
         check_consistent(self.paths, on_disk)
         self._check_baked(declared)

@@ -210,6 +210,36 @@ def read(path: Path) -> Tree:
         raise ModelError(f"{path}: cannot read: {exc}") from None
 
 
+# what JSBSim needs of an aircraft file; without one it aborts the process (a C++ exception)
+REQUIRED_SECTIONS = ("metrics", "mass_balance", "ground_reactions", "propulsion", "aerodynamics")
+
+
+def structure_problems(doc: Tree, engine_dir: Path) -> list[tuple[int | None, str]]:
+    """(line, what) for each thing of an aircraft file that would make JSBSim abort: not an
+    ``fdm_config``, a section missing, a propulsion without an engine and its thruster, or an
+    engine/thruster file that is not in ``engine_dir``."""
+    root = doc.getroot()
+    if root.tag != "fdm_config":
+        return [(root.sourceline, f"the root element is <{root.tag}>, JSBSim needs <fdm_config>")]
+    out: list[tuple[int | None, str]] = [(root.sourceline, f"no <{s}> section") for s in REQUIRED_SECTIONS
+                                         if root.find(s) is None]
+    prop = root.find("propulsion")
+    if prop is None:
+        return out
+    if prop.find("engine") is None:
+        out.append((prop.sourceline, "<propulsion> holds no <engine>"))
+    for el in [*prop.iter("engine"), *prop.iter("thruster")]:
+        f = el.get("file")
+        if not f:
+            out.append((el.sourceline, f"<{el.tag}> without its file attribute"))
+        elif not (Path(engine_dir) / f"{f}.xml").is_file():
+            out.append((el.sourceline, f"<{el.tag} file=\"{f}\">: no {f}.xml in {engine_dir}"))
+    for eng in prop.iter("engine"):
+        if eng.find("thruster") is None:
+            out.append((eng.sourceline, "<engine> without its <thruster>"))
+    return out
+
+
 def parse(text: str, source: str = "") -> Element:
     """An element from XML text; :class:`ModelError` naming ``source`` when it is not well formed."""
     try:

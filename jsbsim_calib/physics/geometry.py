@@ -293,11 +293,14 @@ class _Reader:
         self.path = path
         self.doc = doc
         self.problems: list[Problem] = []
+        self.read: set[str] = set()          # every key asked for (unknown keys: the others)
 
     def bad(self, where: str, message: str) -> None:
         self.problems.append(Problem(where, message))
 
-    def raw(self, where: str, required: bool = True) -> Any:
+    def raw(self, where: str, required: bool = True, mark: bool = True) -> Any:
+        if mark:
+            self.read.add(where)
         node: Any = self.doc
         for part in re.split(r"\.", where):
             m = re.match(r"^(\w+)\[(\d+)\]$", part)
@@ -416,7 +419,7 @@ class _Reader:
         return int(v) if math.isfinite(v) else 0
 
     def count(self, where: str, key: str) -> int:
-        v = self.raw(where, required=False)
+        v = self.raw(where, required=False, mark=False)
         if v is None:
             return 0
         if not isinstance(v, dict):
@@ -607,6 +610,47 @@ def _check_consistency(r: _Reader, ref: ReferenceSpec, surfaces: Sequence[Liftin
             r.bad("wing.y", f"tip station gives span {2 * wing.y_m[-1]:.3f} m but reference.span is {ref.span_m:.3f} m")
 
 
+# keys a geometry file may hold that nothing reads (notes for the reader)
+ACCEPTED_KEYS = ("aircraft.description", "reference.aerodynamic_reference_point")
+
+
+def _unknown_keys(r: _Reader) -> None:
+    """Every key of the file that no field asked for (a misspelt or invented key is not
+    silently ignored), with the keys known at its place."""
+    def walk(node: Any, prefix: str) -> None:
+        items = node.items() if isinstance(node, dict) else ()
+        for key, value in items:
+            here = f"{prefix}.{key}" if prefix else str(key)
+            if here in r.read:
+                continue
+            below = [p for p in r.read if p.startswith((here + ".", here + "["))]
+            if not below:
+                known = sorted({re.split(r"[.\[]", p[len(prefix) + 1 if prefix else 0:])[0] for p in r.read
+                                if not prefix or p.startswith(prefix + ".")})
+                r.bad(here, f"unknown key; known keys here: {', '.join(known)}")
+            elif isinstance(value, list):
+                for i, item in enumerate(value):
+                    walk(item, f"{here}[{i}]")
+            else:
+                walk(value, here)
+    walk(r.doc, "")
+
+
+def _check_masses(r: _Reader, mass: MassSpec) -> None:
+    """Weights that contradict each other: maximum below empty, an envelope beyond the maximum."""
+    kg = 2.20462262
+    if np.isfinite(mass.empty_mass_kg) and np.isfinite(mass.max_mass_kg) and mass.max_mass_kg < mass.empty_mass_kg:
+        r.bad("mass.max_weight", f"{mass.max_mass_kg * kg:.0f} lb is below mass.empty_weight "
+                                 f"{mass.empty_mass_kg * kg:.0f} lb")
+    env = np.asarray(mass.cg_envelope_mass_kg, float)
+    if len(env) and np.all(np.isfinite(env)) and np.isfinite(mass.max_mass_kg) and env[-1] > 1.001 * mass.max_mass_kg:
+        r.bad("mass.cg_envelope_weight", f"reaches {env[-1] * kg:.0f} lb, above mass.max_weight "
+                                         f"{mass.max_mass_kg * kg:.0f} lb")
+    fwd, aft = (np.asarray(a, float) for a in (mass.cg_envelope_fwd_m, mass.cg_envelope_aft_m))
+    if len(fwd) == len(aft) and np.any(np.isfinite(fwd) & np.isfinite(aft) & (fwd >= aft)):
+        r.bad("mass.cg_envelope_forward", "a forward CG limit at or aft of its aft limit (cg_envelope_aft)")
+
+
 def load_geometry(path: str | Path, airfoil_dirs: Sequence[Path] | None = None) -> AircraftGeometry:
     """Read and validate ``geometry.toml``. Raises GeometryError listing every problem."""
     path = Path(path)
@@ -648,6 +692,10 @@ def load_geometry(path: str | Path, airfoil_dirs: Sequence[Path] | None = None) 
     ops = _operations(r)
     data_files, travel_path = _data_files(r, path)
     _check_consistency(r, ref, (wing, ht, vt))
+    _check_masses(r, mass)
+    for k in ACCEPTED_KEYS:
+        r.raw(k, required=False)
+    _unknown_keys(r)
     if r.problems:
         raise GeometryError(path, r.problems)
     return AircraftGeometry(name, title, path, ref, wing, ht, vt, fus, drag, prop, eng, fuel_type, tanks, mass,

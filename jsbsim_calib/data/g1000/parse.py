@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from ...errors import DataError, Problem
+from ..spreadsheet import decode
 
 __all__ = [
     "G1000Log",
@@ -137,7 +138,7 @@ def _read_text(source: str | Path | IO[str]) -> tuple[str, str]:
         raw = path.read_bytes()
     except OSError as exc:
         raise DataError(path, [Problem("", f"cannot read file: {exc.strerror or exc}")]) from exc
-    return str(path), raw.decode("utf-8-sig", errors="replace")
+    return str(path), decode(path, raw)
 
 
 def _warn_lines(source: str, messages: list[str]) -> None:

@@ -1,0 +1,110 @@
+"""Nothing lost (issue 27): two writers of one aircraft, and Ctrl-C at random moments, on real
+processes running the real command line (real JSBSim, a copy of the repository's aircraft).
+
+    INTERRUPTS=20 pytest tests/test_interrupts.py     # more moments (default 6)
+"""
+from __future__ import annotations
+
+import os
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+N_INTERRUPTS = int(os.environ.get("INTERRUPTS", "6"))
+ENV = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+SNAPSHOTS = str(REPO / "data" / "c172_flight_test_snapshots.csv")
+
+
+@pytest.fixture
+def root(tmp_path) -> Path:
+    """A JSBSim root with a copy of the aircraft and engines (the rest linked)."""
+    r = tmp_path / "root"
+    r.mkdir()
+    for d in ("aircraft", "engine"):
+        shutil.copytree(REPO / d, r / d, ignore=shutil.ignore_patterns("backup", ".lock"))
+    for d in ("airfoils", "data", "scripts"):
+        (r / d).symlink_to(REPO / d, target_is_directory=True)
+    return r
+
+
+def product(root: Path, name: str = "c172") -> dict[str, bytes]:
+    folder = root / "aircraft" / name
+    files = [*folder.glob("*.xml"), *folder.glob("*.json"), *folder.glob("*.csv"), root / "engine" / f"{name}_engine.xml",
+             root / "engine" / f"{name}_propeller.xml"]
+    return {p.name: p.read_bytes() for p in files if p.is_file()}
+
+
+def start(root: Path, *argv: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(root), "--quiet", "--workers",
+                             "2", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+
+
+def wait_for(path: Path, timeout: float = 60.0) -> None:
+    t0 = time.monotonic()
+    while not path.exists():
+        assert time.monotonic() - t0 < timeout, f"{path} never appeared"
+        time.sleep(0.05)
+
+
+def test_a_second_writer_is_refused_and_nothing_is_lost(root, tmp_path):
+    """Two calibrate runs on one aircraft: the second is refused naming the first (pid, command,
+    start time); the first, interrupted, leaves the aircraft as it was."""
+    before = product(root)
+    cmd = ("calibrate", "c172", "--stage", "steady", "--report-dir", str(tmp_path / "r"))
+    first = start(root, *cmd)
+    try:
+        wait_for(root / "aircraft" / "c172" / ".lock")
+        second = subprocess.run([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(root), "--quiet", *cmd],
+                                capture_output=True, text=True, env=ENV, timeout=120)
+    finally:
+        first.send_signal(signal.SIGINT)
+        _, err = first.communicate(timeout=120)
+    assert second.returncode == 2, second.stderr
+    assert f"is being written by another run: pid {first.pid}, 'jsbsim-calib --root" in second.stderr
+    assert "calibrate c172 --stage steady" in second.stderr and "started 20" in second.stderr
+    assert "Traceback" not in second.stderr
+    assert first.returncode == 130 and err.strip() == "interrupted; aircraft/c172 unchanged", err
+    assert product(root) == before
+    assert not (root / "aircraft" / "c172" / ".lock").exists()
+
+
+COMMANDS = [("generate", "c172"),
+            ("calibrate", "c172", "--stage", "steady", "--report-dir", "{tmp}/r"),
+            ("close-loop", "c172", "--data", SNAPSHOTS, "--in-place", "--report-dir", "{tmp}/r")]
+
+
+@pytest.mark.parametrize("k", range(N_INTERRUPTS))
+def test_ctrl_c_at_a_random_moment_leaves_the_old_or_the_new_product(k, root, tmp_path):
+    """SIGINT at a random moment: exit 130, one line, no traceback (no worker's either); the
+    aircraft loads and equals the old product or the new one (generate: the same bytes), the
+    lock is gone, and the next run works."""
+    rnd = random.Random(k)
+    argv = [a.format(tmp=tmp_path) for a in COMMANDS[k % len(COMMANDS)]]
+    before = product(root)
+    p = start(root, *argv)
+    time.sleep(rnd.uniform(0.5, 9.0))
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=180)
+    if p.returncode == 0:                       # it ended before the signal: a finished run is fine too
+        assert argv[0] == "generate" and product(root) == before
+    else:
+        assert p.returncode == 130, err
+        lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("warning: ")]   # the data's own
+        assert len(lines) == 1 and lines[0].startswith("interrupted; aircraft/c172"), err
+    assert "Traceback" not in err
+    after = product(root)
+    if argv[0] == "generate" or "unchanged" in err:
+        assert after == before                  # generate writes the same bytes
+    else:
+        assert "holds the new product" in err and after != before
+    assert not (root / "aircraft" / "c172" / ".lock").exists()
+    check = subprocess.run([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(root), "--quiet", "--executor",
+                            "serial", "check", "c172"], capture_output=True, text=True, env=ENV, timeout=120)
+    assert check.returncode == 0, check.stderr
