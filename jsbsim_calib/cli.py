@@ -474,6 +474,10 @@ def _check_inputs(sim) -> dict:
     return {"conditions": check_conditions(sim), "stall_cases": stall_cases(sim)} if isinstance(sim, ForeignSimulator) else {}
 
 
+ANY_AIRCRAFT = ("aircraft name: folder aircraft/AIRCRAFT under --root; one without geometry.toml (e.g. c172p under "
+                "the jsbsim package's root) is any JSBSim aircraft, flown as its file stands")
+
+
 def _foreign_options(parser) -> None:
     parser.add_argument("--foreign-root", metavar="DIR",
                         help="fly a JSBSim aircraft the workbench did not generate, from this JSBSim root "
@@ -529,7 +533,7 @@ def _export_regress_parsers(sub) -> None:
 def _analysis_parsers(sub) -> None:
     """evaluate, validate, synth and close-loop: the commands that compare the model with data."""
     e = sub.add_parser("evaluate", help="compare the model with a data file (POH, flight test, G1000 log)")
-    e.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    e.add_argument("aircraft", help=ANY_AIRCRAFT)
     e.add_argument("--data", required=True,
                    help="data file: POH climb/cruise CSV, flight-test snapshots or flap climbs, G1000 log; or a "
                         "folder of G1000 logs (a fleet: one row per log)")
@@ -672,7 +676,7 @@ def build_parser() -> argparse.ArgumentParser:
     _analysis_parsers(sub)
 
     k = sub.add_parser("check", help="plausibility: lift slope, stall speed, stability and damping derivatives")
-    k.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    k.add_argument("aircraft", help=ANY_AIRCRAFT)
     k.add_argument("--baseline", action="store_true", help="check the uncalibrated model (all factors neutral)")
     k.add_argument("--json", help="also write the full report as JSON to this file")
     _foreign_options(k)
