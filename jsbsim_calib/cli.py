@@ -2,8 +2,9 @@
 reports, print).
 
     jsbsim-calib generate AIRCRAFT [--baseline]
-    jsbsim-calib calibrate AIRCRAFT --stage steady|trims|dynamic|all [--no-write] [--start current] [--skip STEP]
-    jsbsim-calib evaluate AIRCRAFT --data FILE [--baseline] [--json OUT]
+    jsbsim-calib calibrate AIRCRAFT [--stage steady|trims|dynamic|all] [--no-write] [--start current] [--skip STEP]
+                                    [--json OUT] [--exit-zero]
+    jsbsim-calib evaluate AIRCRAFT --data FILE|DIR [--baseline] [--json OUT] [--report-dir DIR]
     jsbsim-calib synth --truth AIRCRAFT_DIR --out FILE.csv [--seed N] [--points N] [--noise X]
     jsbsim-calib synth --truth AIRCRAFT_DIR --plan PLAN --out DIR [--seed N] [--noise X]
     jsbsim-calib close-loop AIRCRAFT --data FILE [--json OUT] [--skip STEP] [--out NAME]
@@ -15,6 +16,11 @@ reports, print).
     jsbsim-calib validate AIRCRAFT [--stage steady|trims|dynamic|all] [--fold NAME] [--report-dir reports]
     jsbsim-calib slipstream AIRCRAFT [--stage steady|all] [--variant off|swirl|theory|fitted] [--max-nfev N] [--json OUT]
     jsbsim-calib airfoil NAME
+    jsbsim-calib part60 AIRCRAFT --flight-test DIR_OR_FILE... [--json OUT] [--exit-zero]
+
+The global options (--root, --quiet, --executor, --workers, --scheduler) go before or after the
+command. Exit codes: 0 done; 1 regress: something moved; 2 an error (bad input, nothing written
+half); 3 calibrate / part60: done, but a target was missed (--exit-zero: 0).
 """
 from __future__ import annotations
 
@@ -27,11 +33,12 @@ import time
 import warnings
 from pathlib import Path
 
+from . import __version__
 from .calibration.closeloop import write_aircraft
 from .calibration.steady import steady_factors
 from .errors import CalibError, InputError, Problem
 from .executor import make_executor
-from .fleet import evaluate_fleet, format_fleet
+from .fleet import evaluate_fleet, format_fleet, log_files
 from .evaluate import evaluate_dataset
 from .generate import generate
 from .guard import command_guard, interrupted_message
@@ -48,6 +55,22 @@ from .synth import synthesize, write_csv
 from .synth_maneuvers import check_settings, load_plan, synthesize_maneuvers
 from .variants import SLIPSTREAM, compare_variants
 from .workflow import load_data_for, run_close_loop, run_dynamic, run_steady, run_trims
+
+
+EXIT_TARGETS_MISSED = 3        # calibrate, part60: the run is done, a target was missed (--exit-zero: 0)
+
+
+def _verdict_exit(a, missed: int) -> int:
+    """The exit code of a command that judges targets."""
+    if missed and not a.exit_zero:
+        print(f"exit code {EXIT_TARGETS_MISSED}: {missed} target(s) missed (--exit-zero to exit 0)", file=sys.stderr)
+        return EXIT_TARGETS_MISSED
+    return 0
+
+
+def _write_json(path, obj) -> None:
+    Path(path).write_text(json.dumps(obj, indent=2, default=float) + "\n")
+    print(f"json: {path}")
 
 
 def _progress(quiet: bool):
@@ -165,8 +188,13 @@ def cmd_calibrate(a) -> int:
             final = "stage 2b (dynamic tests, after stages 1 and 2a)"
     where = "not written (--no-write)" if a.no_write else f"written to {root / 'aircraft' / a.aircraft}"
     print(f"\nfinal model: {final}, {where}")
-    print(format_verdicts(verdicts(summaries), f"{a.aircraft} model from {final}"))
-    return 0
+    vs = verdicts(summaries)
+    print(format_verdicts(vs, f"{a.aircraft} model from {final}"))
+    if a.json:
+        _write_json(a.json, {"aircraft": a.aircraft, "stage": a.stage, "final_model": final,
+                             "written": not a.no_write, "targets_met": sum(v.passed for v in vs),
+                             "verdicts": [v.to_json() for v in vs]})
+    return _verdict_exit(a, sum(not v.passed for v in vs))
 
 
 def _evaluate_fleet(a) -> int:
@@ -189,15 +217,20 @@ def cmd_evaluate(a) -> int:
         ev = evaluate_dataset(sim, ds, model_kind="baseline" if a.baseline else "calibrated",
                               progress=None)
     print(evaluation_table(ev))
-    out_dir = Path(a.report_dir) / sim.name
+    vs = verdicts({ds.kind: ev.summary()})
+    if vs:
+        print(format_verdicts(vs, f"{sim.name} model ({'baseline' if a.baseline else 'as it stands'}) on {Path(a.data).name}"))
     if ds.kind == "g1000":
-        png, md = write_log_report(ev, out_dir, weight_estimate=estimate)
-        print(f"{ds.extra['weight_note']}\nplot: {png}")
+        print(ds.extra["weight_note"])
         if estimate is not None:
             print(estimate.describe() + (" (used)" if a.estimate_weight else " (not used: --estimate-weight)"))
+    if a.report_dir is None:
+        print("report: not written (--report-dir DIR writes it to DIR/AIRCRAFT/)")
+    elif ds.kind == "g1000":
+        png, md = write_log_report(ev, Path(a.report_dir) / sim.name, weight_estimate=estimate)
+        print(f"plot: {png}\nreport: {md}")
     else:
-        md = write_evaluation_report(ev, out_dir)
-    print(f"report: {md}")
+        print(f"report: {write_evaluation_report(ev, Path(a.report_dir) / sim.name)}")
     if a.json:
         ev.write_json(Path(a.json))
         print(f"json: {a.json}")
@@ -302,6 +335,7 @@ def cmd_airfoil(a) -> int:
 
 
 def cmd_part60(a) -> int:
+    from .data.part60 import FAIL
     from .part60 import evaluate_part60, load_part60_inputs
     from .report.part60 import format_part60_table, write_part60_report
     with Simulator(Path(a.root), a.aircraft) as sim:
@@ -314,7 +348,9 @@ def cmd_part60(a) -> int:
     for note in ev.ignored:
         print(f"not used: {note}")
     print(f"report: {files.markdown}\nhtml: {files.html} (self-contained)")
-    return 0
+    if a.json:
+        _write_json(a.json, ev.to_json())
+    return _verdict_exit(a, ev.counts()[FAIL])
 
 
 # --------------------------------------------------------------------------- G1000 loading, validate
@@ -415,19 +451,33 @@ def cmd_slipstream(a) -> int:
 
 
 # --------------------------------------------------------------------------- foreign aircraft, export, regress
+def _is_foreign(root: Path, name: str) -> bool:
+    """An aircraft of the JSBSim root without a geometry file: one the workbench did not generate."""
+    paths = AircraftPaths(root, name)
+    return not paths.geometry.is_file() and (root / "aircraft" / name / f"{name}.xml").is_file()
+
+
 def _simulator(a) -> Simulator:
-    """The command's aircraft: a workbench aircraft, or with --foreign-root any JSBSim aircraft."""
-    if not getattr(a, "foreign_root", None):
+    """The command's aircraft: a workbench aircraft, or any JSBSim aircraft (--foreign-root, or an
+    aircraft of --root without geometry.toml, e.g. the jsbsim package's c172p)."""
+    foreign_root = getattr(a, "foreign_root", None)
+    if not foreign_root and _is_foreign(Path(a.root), a.aircraft):
+        foreign_root = a.root
+    if not foreign_root:
         return Simulator(Path(a.root), a.aircraft, baseline=a.baseline)
     from .jsbsim.foreign import foreign_simulator
     if a.baseline:
         raise CalibError("--baseline: a foreign aircraft has no calibration factors")
-    return foreign_simulator(Path(a.root), a.aircraft, a.foreign_root, a.foreign_aircraft)
+    return foreign_simulator(Path(a.root), a.aircraft, foreign_root, a.foreign_aircraft)
 
 
 def _check_inputs(sim) -> dict:
     from .jsbsim.foreign import ForeignSimulator, check_conditions, stall_cases
     return {"conditions": check_conditions(sim), "stall_cases": stall_cases(sim)} if isinstance(sim, ForeignSimulator) else {}
+
+
+ANY_AIRCRAFT = ("aircraft name: folder aircraft/AIRCRAFT under --root; one without geometry.toml (e.g. c172p under "
+                "the jsbsim package's root) is any JSBSim aircraft, flown as its file stands")
 
 
 def _foreign_options(parser) -> None:
@@ -485,13 +535,14 @@ def _export_regress_parsers(sub) -> None:
 def _analysis_parsers(sub) -> None:
     """evaluate, validate, synth and close-loop: the commands that compare the model with data."""
     e = sub.add_parser("evaluate", help="compare the model with a data file (POH, flight test, G1000 log)")
-    e.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    e.add_argument("aircraft", help=ANY_AIRCRAFT)
     e.add_argument("--data", required=True,
                    help="data file: POH climb/cruise CSV, flight-test snapshots or flap climbs, G1000 log; or a "
                         "folder of G1000 logs (a fleet: one row per log)")
     e.add_argument("--baseline", action="store_true", help="evaluate the uncalibrated model")
     e.add_argument("--json", help="write the results as JSON to this file")
-    e.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
+    e.add_argument("--report-dir", help="write the report (and a G1000 log's plot) to REPORT_DIR/AIRCRAFT/; default: "
+                                        "none written (the console and --json give the figures)")
     e.add_argument("--occupants-lb", dest="occupants_lb", type=float, help="G1000 log: occupants [lb] (default 340)")
     e.add_argument("--baggage-lb", dest="baggage_lb", type=float, help="G1000 log: baggage [lb] (default 0)")
     e.add_argument("--fuel-density", dest="fuel_density_lb_per_gal", type=float,
@@ -509,7 +560,7 @@ def _analysis_parsers(sub) -> None:
                    help="steady: stage 1 folds; trims: stage 2a folds; dynamic: stage 2b folds; all (default): those "
                         "the data allow")
     v.add_argument("--fold", action="append", metavar="NAME", help="run only this fold (repeatable; e.g. 'flaps 10')")
-    v.add_argument("--max-nfev", dest="max_nfev", type=int, help="evaluations per refit (default 60)")
+    v.add_argument("--max-nfev", dest="max_nfev", type=_positive_int, help="evaluations per refit (default 60)")
     v.add_argument("--no-physics", action="store_true", help="skip the physics checks")
     v.add_argument("--json", help="also write the validation results as JSON to this file")
     v.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/)")
@@ -522,7 +573,7 @@ def _analysis_parsers(sub) -> None:
     s.add_argument("--stage", choices=("steady", "all"), default="all",
                    help="steady: stage 1 only; all (default): every stage the aircraft's data allow")
     s.add_argument("--json", help="also write each variant's factors and figures as JSON to this file")
-    s.add_argument("--max-nfev", dest="max_nfev", type=int, metavar="N",
+    s.add_argument("--max-nfev", dest="max_nfev", type=_positive_int, metavar="N",
                    help="evaluations per fit (default: the calibration's); fewer for a quick look")
     s.add_argument("--variant", action="append", choices=tuple(v.name for v in SLIPSTREAM),
                    help="run only this variant (repeatable; default all of them)")
@@ -557,17 +608,48 @@ def _analysis_parsers(sub) -> None:
     o.set_defaults(func=cmd_close_loop)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="jsbsim-calib", description="Build and calibrate general-aviation JSBSim aircraft.")
-    p.add_argument("--root", default=".", help="JSBSim root (holds aircraft/, engine/, data/); default: current dir")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
-    p.add_argument("--executor", choices=("serial", "process", "dask"), default="process",
+def _positive_int(text: str) -> int:
+    """An argparse type: a whole number of at least 1 (e.g. --max-nfev)."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{n}: give at least 1")
+    return n
+
+
+GLOBAL_DEFAULTS = {"root": ".", "quiet": False, "executor": "process", "workers": None, "scheduler": None}
+
+
+def _global_options(p, suppress: bool) -> None:
+    """The options every command takes, before the command (``suppress`` False: with their
+    defaults) or after it (``suppress`` True: set only when given, so a value given before the
+    command is not clobbered by a default)."""
+    d = (lambda key: argparse.SUPPRESS) if suppress else GLOBAL_DEFAULTS.get
+    p.add_argument("--root", default=d("root"), help="JSBSim root (holds aircraft/, engine/, data/); default: current dir")
+    p.add_argument("--quiet", action="store_true", default=d("quiet"), help="no progress lines")
+    p.add_argument("--executor", choices=("serial", "process", "dask"), default=d("executor"),
                    help="where independent work runs (a fit's Jacobian columns ...): process pool (default), this "
                         "process, or a dask.distributed cluster; the results are the same bits on each")
-    p.add_argument("--workers", type=int, metavar="N",
+    p.add_argument("--workers", type=int, metavar="N", default=d("workers"),
                    help="worker processes (process pool, local dask cluster); default: one per core")
-    p.add_argument("--scheduler", metavar="ADDRESS",
+    p.add_argument("--scheduler", metavar="ADDRESS", default=d("scheduler"),
                    help="dask scheduler address (tcp://host:8786) for --executor dask; default: a local cluster")
+
+
+def _verdict_options(p, what: str) -> None:
+    p.add_argument("--json", help=f"also write {what} as JSON to this file")
+    p.add_argument("--exit-zero", action="store_true",
+                   help=f"exit 0 when targets are missed (default: exit {EXIT_TARGETS_MISSED})")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="jsbsim-calib", description="Build and calibrate general-aviation JSBSim aircraft.",
+                                epilog="Global options go before or after the command. Exit codes: 0 done; 1 regress: "
+                                       "something moved; 2 error; 3 calibrate/part60: a target missed (--exit-zero: 0).")
+    p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    _global_options(p, suppress=False)
     sub = p.add_subparsers(dest="command", required=True)
 
     g = sub.add_parser("generate", help="regenerate an aircraft's JSBSim files from aircraft/NAME/geometry.toml")
@@ -579,22 +661,24 @@ def build_parser() -> argparse.ArgumentParser:
 
     c = sub.add_parser("calibrate", help="run a calibration stage and write the calibrated aircraft")
     c.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
-    c.add_argument("--stage", required=True, choices=("steady", "trims", "dynamic", "all"),
+    c.add_argument("--stage", default="all", choices=("steady", "trims", "dynamic", "all"),
                    help="steady: POH climb/cruise (stage 1, resets later stages); trims: flight-test trims "
                         "(stage 2a, from the aircraft's stage-1 factors); dynamic: damping and pitch axis on the "
-                        "dynamic tests (stage 2b, from the current factors); all: the three in order")
+                        "dynamic tests (stage 2b, from the current factors); all (default, the main job): the "
+                        "three in order, those the aircraft's data allow")
     c.add_argument("--start", choices=("neutral", "current"), default="neutral",
                    help="start from neutral factors (default, reproducible) or the current calibration")
     c.add_argument("--skip", action="append", metavar="STEP",
                    help="trims stage: leave out a step (pitch, control, pfactor, flaps); repeatable")
     c.add_argument("--no-write", action="store_true", help="do not write the aircraft files")
     c.add_argument("--report-dir", default="reports", help="where reports go (default reports/)")
+    _verdict_options(c, "the verdicts of the targets")
     c.set_defaults(func=cmd_calibrate)
 
     _analysis_parsers(sub)
 
     k = sub.add_parser("check", help="plausibility: lift slope, stall speed, stability and damping derivatives")
-    k.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    k.add_argument("aircraft", help=ANY_AIRCRAFT)
     k.add_argument("--baseline", action="store_true", help="check the uncalibrated model (all factors neutral)")
     k.add_argument("--json", help="also write the full report as JSON to this file")
     _foreign_options(k)
@@ -612,8 +696,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="flight-test files or folders: results + snapshots (+ control travel) CSV files and/or "
                         "time histories (CSV + JSON sidecar)")
     q.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/part60/)")
+    _verdict_options(q, "every test's verdict and its cases' metrics")
     q.set_defaults(func=cmd_part60)
     _export_regress_parsers(sub)
+    for command in sub.choices.values():
+        _global_options(command, suppress=True)
     return p
 
 
@@ -655,7 +742,10 @@ def path_problems(a) -> list[Problem]:
         out += _output_file("--json", a.json)
     if getattr(a, "report_dir", None):
         out += _output_folder("--report-dir", a.report_dir)
-    if a.command == "evaluate" or (a.command == "close-loop" and a.data):
+    if a.command == "evaluate" and Path(a.data).is_dir():          # a folder of G1000 logs: the fleet
+        out += [] if log_files(Path(a.data)) else [Problem("--data", f"{a.data}: is a folder without G1000 logs; give "
+                                                           "a data file, or a folder of G1000 logs (a fleet)")]
+    elif a.command == "evaluate" or (a.command == "close-loop" and a.data):
         out += _input_file("--data", a.data)
     if a.command == "synth":
         out += _output_folder("--out", a.out) if a.plan else _output_file("--out", a.out)

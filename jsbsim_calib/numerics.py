@@ -26,6 +26,10 @@ class SingularMatrixError(ArithmeticError):
     """The matrix has no inverse (a zero pivot)."""
 
 
+class ProblemError(ValueError):
+    """A least-squares problem that cannot be solved as posed (bounds, start, residuals at the start)."""
+
+
 def dot(a, b) -> float:
     """Sum of element-wise products, correctly rounded."""
     return math.fsum(np.multiply(np.asarray(a, float), np.asarray(b, float)).tolist())
@@ -108,6 +112,28 @@ MESSAGES = {0: "the maximum number of function evaluations is exceeded",
             3: "`ftol` termination condition is satisfied"}
 
 
+def _checked_box(x0, lower, upper) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The start and the bounds as float arrays of one shape; :class:`ProblemError` for a start
+    outside the box or not finite, or a bound pair with lower >= upper (nothing is clipped)."""
+    x = np.asarray(x0, float)
+    try:
+        lower, upper = (np.broadcast_to(np.asarray(b, float), x.shape).copy() for b in (lower, upper))
+    except ValueError:
+        raise ProblemError(f"least_squares: bounds of shape {np.shape(lower)} and {np.shape(upper)} do not fit "
+                           f"x0 of shape {x.shape}") from None
+    where = lambda mask: ", ".join(str(i) for i in np.flatnonzero(mask)[:5])
+    if not np.all(lower < upper):
+        raise ProblemError(f"least_squares: lower >= upper (or not a number) at index {where(~(lower < upper))}")
+    if not np.all(np.isfinite(x)):
+        raise ProblemError(f"least_squares: x0 is not finite at index {where(~np.isfinite(x))}")
+    outside = (x < lower) | (x > upper)
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        raise ProblemError(f"least_squares: x0 outside the bounds at index {where(outside)} (first: {x[i]!r} not in "
+                           f"[{lower[i]!r}, {upper[i]!r}]); start inside the box (nothing is clipped)")
+    return x, lower, upper
+
+
 def least_squares(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray, np.ndarray], np.ndarray], x0,
                   lower, upper, *, ftol: float = 1e-9, xtol: float = 1e-9, gtol: float = 1e-9,
                   max_nfev: int | None = None, lam0: float = 1e-3,
@@ -119,12 +145,17 @@ def least_squares(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.nda
     Stops when an accepted step lowers the cost by less than ``ftol`` of it, when a step is
     shorter than ``xtol`` (1 + |x|), when the projected gradient is below ``gtol`` (1 + cost),
     or after ``max_nfev`` residual evaluations. ``jac(x, fun(x))`` gives the Jacobian;
-    ``callback(cost)`` runs after each accepted step.
+    ``callback(cost)`` runs after each accepted step. A start outside the box (or not finite),
+    a lower bound not below its upper bound, or a residual at the start that is not finite is a
+    :class:`ProblemError` (the start is never clipped).
     Deterministic: the same inputs give the same bits on any CPU (module doc).
     """
-    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-    x = np.clip(np.asarray(x0, float), lower, upper)
+    x, lower, upper = _checked_box(x0, lower, upper)
     r = np.asarray(fun(x), float)
+    bad = np.flatnonzero(~np.isfinite(r))
+    if bad.size:
+        raise ProblemError(f"least_squares: {bad.size} of {r.size} residuals are not finite at the start x0 "
+                           f"(first at index {int(bad[0])}: {r[bad[0]]}); the cost is not defined there")
     cost, nfev, njev = 0.5 * sum_sq(r), 1, 0
     lam, nu, status, J = None, 2.0, None, None
     while status is None:

@@ -125,6 +125,18 @@ class Part60Evaluation:
     def test(self, test_id: str) -> ObjectiveTest:
         return next(t for t in self.tests if t.test.id == test_id)
 
+    def to_json(self) -> dict:
+        """Every test's verdict and reason, and each case's metrics (a NaN is written as null)."""
+        num = lambda x: float(x) if isinstance(x, (int, float, np.number)) and math.isfinite(float(x)) else None
+        case = lambda c: {"case": c.case, "source": c.source, "verdict": c.verdict, "failure": c.failure,
+                          "metrics": [{"name": m.name, "unit": m.unit, "flight_test": num(m.flight_test),
+                                       "model": num(m.model), "error": num(m.error), "tolerance": m.tolerance,
+                                       "verdict": m.verdict, "reason": m.reason} for m in c.metrics]}
+        return {"aircraft": self.aircraft, "counts": self.counts(), "sources": list(self.sources),
+                "ignored": list(self.ignored),
+                "tests": [{"id": t.test.id, "title": t.test.title, "verdict": t.verdict, "reason": t.reason,
+                           "cases": [case(c) for c in t.cases]} for t in self.tests]}
+
 
 # --------------------------------------------------------------------------- verdicts
 def _fmt(x: float) -> str:

@@ -571,10 +571,9 @@ TABLE_ROW = re.compile(r"^\| (\d+) \| `([^`]+)` \| (.+?) \| (\d+) \| .+ \|$", re
 
 
 def test_readme_table_is_these_cases():
-    """README, "Bad inputs": one row per case, in order, each with its id, description and exit
-    code; the cases of issue 27 in docs/bad-inputs.md, numbered on."""
-    rows = TABLE_ROW.findall((REPO / "README.md").read_text()) + TABLE_ROW.findall(
-        (REPO / "docs" / "bad-inputs.md").read_text())
+    """docs/bad-inputs.md (the README's former section, continued with the cases of issue 27):
+    one row per case, in order, each with its id, description and exit code."""
+    rows = TABLE_ROW.findall((REPO / "docs" / "bad-inputs.md").read_text())
     assert [(int(k), i, w, int(rc)) for k, i, w, rc in rows] == [(k, c.id, c.what, c.exit)
                                                                  for k, c in enumerate(CASES, 1)]
 

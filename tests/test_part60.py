@@ -3,6 +3,7 @@ real summary data, and the model flying a synthetic flight test of its own (real
 real data; the synthetic records are flown by a temporary copy of aircraft/c172)."""
 from __future__ import annotations
 
+import json
 import math
 import re
 import shutil
@@ -242,8 +243,10 @@ def test_synthetic_report_and_cli(synthetic, tmp_path, capsys):
     assert "Channel errors over the record" in md and "P_1_pitch_pulse.csv" in md
     from jsbsim_calib.cli import main
     code = main(["--quiet", "--root", str(REPO), "part60", "c172", "--flight-test", str(DATA), str(folder),
-                 "--report-dir", str(tmp_path / "reports")])
-    assert code == 0
+                 "--report-dir", str(tmp_path / "reports"), "--json", str(tmp_path / "part60.json")])
+    counts = json.loads((tmp_path / "part60.json").read_text())["counts"]
+    assert code == (3 if counts["FAIL"] else 0)            # 3: a test failed (--exit-zero: 0)
+    assert all(t["verdict"] in ("PASS", "FAIL", "n/a") for t in json.loads((tmp_path / "part60.json").read_text())["tests"])
     out = capsys.readouterr().out
     written = tmp_path / "reports" / "c172" / "part60"
     assert (written / "part60.md").is_file() and (written / "part60.html").is_file()

@@ -62,7 +62,9 @@ class Envelope:
         def kcas(kias: float) -> float:
             return float(kcas_from_kias(kias, table)) if math.isfinite(kias) else math.nan
 
-        return cls(geom.title, geom.mass.max_mass_kg / LBM, getattr(ops, "service_ceiling_m", math.nan) / FT,
+        stated = getattr(geom, "stated_max_weight_lb", None)     # a foreign aircraft's: NaN when unknown
+        max_weight = geom.mass.max_mass_kg / LBM if stated is None else stated
+        return cls(geom.title, max_weight, getattr(ops, "service_ceiling_m", math.nan) / FT,
                    kcas(getattr(ops, "never_exceed_kias_kt", math.nan)),
                    kcas(getattr(ops, "stall_landing_kias_kt", math.nan)))
 

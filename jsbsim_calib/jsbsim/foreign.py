@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import shutil
+import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -390,6 +391,7 @@ class ForeignGeometry:
     cbar_m: float
     control_travel_file: Path | None = None
     data_files: dict[str, Path] = field(default_factory=dict)
+    stated_max_weight_lb: float = NAN    # [lb] the envelope's limit; NaN: a JSBSim file does not state it
 
 
 def _control(name: str, lo_deg: float, hi_deg: float) -> ControlSurface:
@@ -434,7 +436,7 @@ def foreign_geometry(ac: ForeignAircraft, conv: Conventions = Conventions()) -> 
                                ac.engine.idle_rpm, conv.full_rich_below_ft * FT)
     return ForeignGeometry(ac.name, ac.title, ac.path, ReferenceSpec(ac.wing_area_ft2 * FT**2, ac.wingspan_ft * FT),
                            wing, tail, fin, _propeller_spec(ac.propeller), engine, "AVGAS", tanks, mass, ops,
-                           ac.chord_ft * FT)
+                           ac.chord_ft * FT, stated_max_weight_lb=conv.max_weight_lb or NAN)
 
 
 # --------------------------------------------------------------------------- the simulator
@@ -597,4 +599,8 @@ def foreign_simulator(root: Path | str, like: str, foreign_root: Path | str, nam
     ``changes`` to them by field (e.g. ``poh_cg_in=41.0``)."""
     geometry = AircraftPaths(Path(root), like).geometry
     conv = conventions_like(load_aircraft_geometry(Path(root), like)) if geometry.is_file() else Conventions()
+    if not geometry.is_file() and "max_weight_lb" not in changes:
+        warnings.warn(f"{name or like}: no workbench aircraft of that name lends its POH conventions; the JSBSim file "
+                      "does not state a maximum weight, ceiling or speed limits (the data's envelope is not checked), "
+                      "% power is of the engine file's maxhp, KIAS = KCAS, full rich below 3,000 ft")
     return ForeignSimulator(resolve_root(foreign_root), name or like, replace(conv, **changes))

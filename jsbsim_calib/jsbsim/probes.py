@@ -273,6 +273,13 @@ def _lift_coefficient(sim: Simulator) -> float:
     return r.lift_drag_lbf()[0] / (r.qbar_psf * r.area_ft2)
 
 
+def _envelope_end(kcas: float, trim_reason: str) -> str:
+    """The stall search's note where the glide stops trimming: the expected end of the envelope,
+    not an error (the trim's own words stay in the trim result)."""
+    limit = "the elevator at its stop" if "elevator" in trim_reason else "no steady glide"
+    return f"stall: {limit} below {kcas:.1f} KCAS (the expected end of the envelope)"
+
+
 def stall_speed(sim: Simulator, weight_lb: float, cg_in: float, flaps_deg: float = 0.0,
                 pressure_alt_ft: float = 0.0, *, power: str | float = "idle", start_kcas: float = 70.0,
                 step_kt: float = 2.0, min_kcas: float = 20.0, resolution_kt: float = 0.1,
@@ -305,11 +312,11 @@ def stall_speed(sim: Simulator, weight_lb: float, cg_in: float, flaps_deg: float
         point ``resolution_kt`` faster)."""
         r, cl = point(v)
         if not r.trimmed:
-            return False, f"trim failed at {v:.1f} KCAS: {r.reason}", r, cl
+            return False, _envelope_end(v, r.reason), r, cl
         if ref is None:
             r_hi, cl_hi = point(v + resolution_kt)
             if not r_hi.trimmed:
-                return False, f"trim failed at {v + resolution_kt:.1f} KCAS: {r_hi.reason}", r, cl
+                return False, _envelope_end(v + resolution_kt, r_hi.reason), r, cl
             ref = (v + resolution_kt, cl_hi)
             r, cl = point(v)                       # leave this speed's state behind
         if cl <= ref[1]:

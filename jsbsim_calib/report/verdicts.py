@@ -3,8 +3,8 @@
 A target names a data kind, a metric, a statistic of the evaluation summary (``rmse`` or
 ``within_pct``) and its limit. The tolerances themselves belong to the metrics
 (:data:`jsbsim_calib.data.schemas.METRICS`, FAA Part 60 Level 5 derived); the targets say how much
-of the data must meet them. A statistic that is missing or not a number is a MISS, never a
-PASS.
+of the data must meet them. A statistic that is missing or not a number is a FAIL, never a
+PASS (the verdict words are those of the dynamic and Part 60 tables: PASS / FAIL).
 """
 from __future__ import annotations
 
@@ -59,6 +59,16 @@ class Verdict:
     def passed(self) -> bool:
         return self.target.met_by(self.measured)
 
+    @property
+    def word(self) -> str:
+        return "PASS" if self.passed else "FAIL"
+
+    def to_json(self) -> dict:
+        finite = self.measured is not None and math.isfinite(self.measured)
+        return {"data": self.target.kind, "metric": self.target.metric, "statistic": self.target.statistic,
+                "target": self.target.describe(), "measured": self.measured if finite else None,
+                "verdict": self.word}
+
 
 def verdicts(summaries: Mapping[str, Mapping[str, Mapping]], targets=TARGETS) -> list[Verdict]:
     """Verdicts of the targets whose kind and metric the summaries hold
@@ -81,7 +91,7 @@ def format_verdicts(vs: list[Verdict], model: str) -> str:
         meas = "n/a" if v.measured is None or not math.isfinite(v.measured) else (
             f"{v.measured:.1f} %" if v.target.statistic in ("within_pct", "mape") else f"{v.measured:.2f}")
         lines.append(f"{v.target.kind:<11} {v.target.metric:<17} {tol:>14} {v.target.describe():>15} {meas:>9}  "
-                     f"{'PASS' if v.passed else 'MISS'}")
+                     f"{v.word}")
     n = sum(v.passed for v in vs)
     lines.append(f"{n} of {len(vs)} targets met")
     return "\n".join(lines)

@@ -1,0 +1,108 @@
+"""The command line's grammar (issue 26): global options before or after the command, --version,
+a default stage, --max-nfev checked by the parser, one set of verdict words, the fleet folder,
+no report written into the repository unasked, and any JSBSim aircraft by name. Real JSBSim where
+something flies; the parser alone where nothing does."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import jsbsim
+import pytest
+
+from jsbsim_calib import __version__
+from jsbsim_calib.cli import EXIT_TARGETS_MISSED, build_parser, main, path_problems
+from jsbsim_calib.report.verdicts import TARGETS, Verdict, format_verdicts
+
+REPO = Path(__file__).resolve().parents[1]
+POH_CLIMB = REPO / "data" / "c172_poh_climb.csv"
+
+
+def parse(*argv):
+    return build_parser().parse_args(list(argv))
+
+
+def test_global_options_after_the_command():
+    a = parse("evaluate", "c172", "--data", "d.csv", "--workers", "1", "--root", "R", "--quiet", "--executor", "serial")
+    assert (a.workers, a.root, a.quiet, a.executor) == (1, "R", True, "serial")
+
+
+def test_global_options_before_the_command_are_not_clobbered_by_defaults():
+    a = parse("--root", "R", "--workers", "3", "--scheduler", "tcp://h:1", "calibrate", "c172")
+    assert (a.root, a.workers, a.scheduler, a.executor, a.quiet) == ("R", 3, "tcp://h:1", "process", False)
+    b = parse("--root", "R", "check", "c172", "--root", "S")        # after the command wins
+    assert b.root == "S"
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0 and capsys.readouterr().out.strip() == f"jsbsim-calib {__version__}"
+
+
+def test_calibrate_defaults_to_the_main_job_and_takes_json_and_exit_zero():
+    a = parse("calibrate", "c172")
+    assert (a.stage, a.json, a.exit_zero) == ("all", None, False)
+    assert parse("part60", "c172", "--flight-test", "data", "--json", "x.json", "--exit-zero").exit_zero
+
+
+@pytest.mark.parametrize("command", [["validate", "c172"], ["slipstream", "c172"]])
+@pytest.mark.parametrize("value", ["0", "-3", "many"])
+def test_max_nfev_below_one_is_a_clear_error(command, value, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(command + ["--max-nfev", value])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and "argument --max-nfev" in err and "Traceback" not in err
+
+
+def test_one_set_of_verdict_words_and_a_nan_fails():
+    target = next(t for t in TARGETS if t.statistic == "rmse")
+    text = format_verdicts([Verdict(target, 1e9), Verdict(target, math.nan), Verdict(target, 0.0)], "test model")
+    assert text.count("FAIL") == 2 and text.count("PASS") == 1 and "MISS" not in text
+    assert Verdict(target, math.nan).to_json()["measured"] is None
+
+
+def test_evaluate_takes_a_folder_of_logs():
+    assert path_problems(parse("--root", str(REPO), "evaluate", "c172", "--data", str(REPO / "data" / "g1000"))) == []
+
+
+def test_fleet_folder_evaluates(tmp_path, capsys):
+    out = tmp_path / "fleet.json"
+    assert main(["--root", str(REPO), "evaluate", "c172", "--data", str(REPO / "data" / "g1000"), "--quiet",
+                 "--executor", "serial", "--json", str(out)]) == 0
+    assert "fleet (1 logs)" in capsys.readouterr().out and out.is_file()
+
+
+def test_evaluate_writes_no_report_unless_asked(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["--root", str(REPO), "evaluate", "c172", "--data", str(POH_CLIMB), "--executor", "serial"]) == 0
+    out = capsys.readouterr().out
+    assert "report: not written" in out and "Verdicts of the c172 model" in out and "PASS" in out
+    assert list(tmp_path.iterdir()) == []
+    assert main(["--root", str(REPO), "evaluate", "c172", "--data", str(POH_CLIMB), "--executor", "serial",
+                 "--report-dir", str(tmp_path)]) == 0
+    assert (tmp_path / "c172").is_dir()
+
+
+def test_any_jsbsim_aircraft_by_name(capsys):
+    """`jsbsim-calib --root JSBSIM_ROOT evaluate c172p --data POH`: no geometry.toml, the adapter
+    flies the stock file and says what it cannot know; the figures as with --foreign-root."""
+    root = jsbsim.get_default_root_dir()
+    assert main(["--root", str(root), "evaluate", "c172p", "--data", str(POH_CLIMB), "--executor", "serial"]) == 0
+    out, err = capsys.readouterr()
+    assert "does not state a maximum weight" in err
+    assert "Verdicts of the c172p model" in out and "FAIL" in out          # the stock c172p: 178 fpm RMSE
+
+
+def test_check_words_the_stall_as_the_end_of_the_envelope(tmp_path, capsys):
+    out = tmp_path / "check.json"
+    assert main(["--root", str(REPO), "--executor", "serial", "check", "c172", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    stall = text[text.index("Stall"):]
+    assert "trim failed" not in stall and "no equilibrium" not in stall and "expected end of the envelope" in stall
+    assert json.loads(out.read_text())
+
+
+def test_exit_code_for_missed_targets_is_documented():
+    assert EXIT_TARGETS_MISSED == 3 and "3" in build_parser().epilog
