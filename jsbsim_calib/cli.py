@@ -34,7 +34,7 @@ import warnings
 from pathlib import Path
 
 from . import __version__
-from .calibration.closeloop import write_aircraft
+from .calibration.loop import write_aircraft
 from .calibration.steady import steady_factors
 from .errors import CalibError, InputError, Problem
 from .executor import make_executor
@@ -271,7 +271,7 @@ def _synth_plan(a) -> int:
 
 
 def _close_loop_dynamic(a) -> int:
-    from .calibration.closeloop_dynamic import run_close_loop_dynamic, write_aircraft as write_loop_aircraft
+    from .calibration.closeloop_dynamic import run_close_loop_dynamic
     from .report.closeloop_dynamic import format_result, write_close_loop_dynamic_report
     if a.skip:
         raise CalibError("close-loop --flight-test: --skip reruns stage 2a for trim data, not for time histories")
@@ -280,7 +280,7 @@ def _close_loop_dynamic(a) -> int:
     print(format_result(res))
     written = None
     if not a.no_write:
-        written = write_loop_aircraft(res, root, a.aircraft if a.in_place else (a.out or f"{a.aircraft}_loop"))
+        written = write_aircraft(res, root, a.aircraft if a.in_place else (a.out or f"{a.aircraft}_loop"))
         print(f"aircraft: {written}")
     command = f"jsbsim-calib close-loop {a.aircraft} --flight-test {' '.join(Path(f).name for f in a.flight_test)}"
     print(f"report: {write_close_loop_dynamic_report(res, Path(a.report_dir) / a.aircraft, written, command)}")

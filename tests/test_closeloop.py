@@ -19,7 +19,8 @@ import pytest
 from lxml import etree
 
 from jsbsim_calib.jsbsim import xml
-from jsbsim_calib.calibration.closeloop import close_loop, write_aircraft
+from jsbsim_calib.calibration.closeloop import close_loop
+from jsbsim_calib.calibration.loop import write_aircraft
 from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.calibration.effects import library
 from jsbsim_calib.jsbsim.condition import Condition
@@ -211,8 +212,8 @@ def test_real_c172_trims_without_pfactor_step_find_the_yaw_effect(tmp_path):
 def test_no_evidence_test_accepts_a_nan():
     """Each evidence test of the close-loop, fed a NaN in any of its quantities, refuses; a
     metric whose noise could not be estimated weighs with its tolerance, not with NaN."""
-    from jsbsim_calib.calibration.closeloop import (MIN_EVIDENCE, evidence_failures, noise_in_tolerances,
-                                        pays_off_out_of_sample)
+    from jsbsim_calib.calibration.closeloop import noise_in_tolerances
+    from jsbsim_calib.calibration.loop import MIN_EVIDENCE, evidence_failures, pays_off_out_of_sample
     from jsbsim_calib.calibration.diagnose import MetricDiagnosis
     nan = float("nan")
     passing = dict(delta_bic=-2 * MIN_EVIDENCE, material=1.0, structure=1.0, share=0.9)

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from lxml import etree
 
-from jsbsim_calib.calibration.closeloop import MIN_EVIDENCE, MIN_EXPLAINED, evidence_failures, pays_off_out_of_sample
+from jsbsim_calib.calibration.loop import MIN_EVIDENCE, MIN_EXPLAINED, evidence_failures, pays_off_out_of_sample
 from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, acts_on, close_loop_dynamic, check_tests,
                                                         companion_factors, cross_validate, dynamic_library,
                                                         effect_axis, noise_in_scales)

@@ -39,54 +39,51 @@ rate, roll due to yaw rate, aileron adverse yaw). These are zero in a steady str
 so the trim loop does not try them. Pitch damping is the calibration factor K_Cmq of stage 2b,
 not an effect.
 
-The samples of a time history are correlated: the likelihood behind the BIC change assumes
-white noise of the estimated level, which overstates the evidence wherever the residual stays
-structured (the trim loop's likelihood has the same blind spot). The explained share and the
-cross-validation over whole maneuvers are the tests that decide between effects.
+The samples of a time history are correlated: the likelihood behind the BIC change counts
+each channel's effective samples (:func:`independent_share`, from the lag-1 autocorrelation of
+its residual), not every sample, so the evidence it prints is of the size the explained share
+and the cross-validation over whole maneuvers (the tests that decide between effects) imply.
 """
 from __future__ import annotations
 
 import math
 import time
-from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy import stats
-from scipy.optimize import minimize_scalar
 
 from ..data.flighttest import load_control_travel
 from ..data.timehistory import CHANNELS
 from ..dynamics import AXIS_CHANNELS, CHANNEL_SCALES, FAIL_RESIDUAL, RecordedTest, load_recorded_tests
 from ..errors import CalibError, InputError, Problem
 from ..factors import FactorSet, step_factors
-from ..jsbsim.product import AircraftPaths, write_derived
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.trajectory import fly
 from ..jsbsim.xml import Tree, parse
-from .closeloop import (MATERIAL, MIN_EVIDENCE, MIN_EXPLAINED, MIN_HELD_GAIN, NOISE_FLOOR, Unexplained,
-                        evidence_failures, pays_off_out_of_sample)
+from .closeloop import Unexplained
 from .diagnose import ALPHA, Correlate
 from .effects import LIBRARY_DIR, Effect, library
 from .equation_error import Column, Ranked, effect_columns, equation_error, factor_columns, inertia_columns, rank, \
     term_columns
-from .fit import LEGS, FitResult, fit
+from .fit import LEGS, FitResult
+from .loop import (MATERIAL, MAX_EFFECTS, NOISE_FLOOR, RULES as LOOP_RULES, Candidate, Change, Round, Rows,
+                   cross_validate as loop_cross_validate, run_loop)
 from .synthesis import EFFECT_PREFIX, Linearization, Selection, dictionary, select, term_effect
 from .terms import SAME_FORM
 from .trims import STEP_PRIOR
 
 DYNAMIC_LIBRARY_DIR = LIBRARY_DIR / "dynamic"
 CV_FOLDS = 4                 # cross-validation folds (whole maneuvers; fewer with fewer tests)
-MAX_EFFECTS = 4
-CANDIDATE_NFEV = 40          # function evaluations of a candidate's fit (one factor, a smooth response)
+CANDIDATE_NFEV = 12          # function evaluations of a candidate's fit (from the equation error's estimate)
+CANDIDATE_LEGS = ((1.0, 0.002),)   # one leg: the start is close, no path of priors
 REFIT_NFEV = 80
 MIN_SAMPLES = 10             # samples a channel needs to be diagnosed
 MIN_CORRELATION = 0.3        # |r| of a state or input listed as a correlate
 FINALISTS = 3                # named candidates flown per round (the strongest by equation error)
 SCREEN_LISTED = 12           # ranked candidates a report lists per round
-INERTIA_SCALES = (0.4, 2.5)  # the range a moment of inertia may be scaled over
 EE_AXES_OF = {"roll": ("ROLL",), "yaw": ("YAW",), "pitch": ("PITCH",)}   # LIFT: alpha's noise dominates it
 AXIS_OF_EE = {"ROLL": "roll", "YAW": "yaw", "PITCH": "pitch", "LIFT": "pitch"}
 INERTIA_OF = {"roll": "ixx", "pitch": "iyy", "yaw": "izz"}
@@ -95,8 +92,7 @@ MOMENT_AXIS = {"ROLL": "roll", "YAW": "yaw", "SIDE": "yaw", "PITCH": "pitch", "L
 COUPLED = {"roll": ("roll", "yaw"), "yaw": ("roll", "yaw"), "pitch": ("pitch",)}
 # the trim loop's evidence rules (recorded in the JSON; evidence_failures and
 # pays_off_out_of_sample apply them)
-RULES = {"min_evidence_bic_decrease": MIN_EVIDENCE, "min_explained_share": MIN_EXPLAINED,
-         "material_share_of_scale": MATERIAL, "min_cross_validated_gain": MIN_HELD_GAIN, "cv_folds": CV_FOLDS}
+RULES = {**LOOP_RULES, "cv_folds": CV_FOLDS}
 
 
 def _change(m: Mapping[str, np.ndarray], c: str) -> np.ndarray:
@@ -143,7 +139,7 @@ def acts_on(eff: Effect) -> tuple[str, ...]:
 
 def companion_factors(eff: Effect) -> list[str]:
     """The stage-2b factors of the effect's axis (not those it duplicates, ``same_as``)."""
-    return Change.of_effect(eff).companions()
+    return TimeHistoryEvidence((), {}).companions(Change.of_effect(eff, axis=effect_axis(eff) or ""))
 
 
 # --------------------------------------------------------------------------- flying the tests
@@ -199,17 +195,6 @@ def _stack(responses: Sequence[Response]) -> tuple[np.ndarray, np.ndarray, np.nd
 
 def _per_channel(r: np.ndarray, ch: np.ndarray) -> dict[str, float]:
     return {c: float(np.sum(r[ch == c] ** 2)) for c in dict.fromkeys(ch)}
-
-
-def _residual_function(sim: Simulator, tests: Sequence[RecordedTest]):
-    """factors -> (scaled residuals of every test, labels), flying ``sim``."""
-    labels = [f"{t.id} {c} t={s:.2f}" for t in tests for c in response_channels(t) for s in t.time_s]
-
-    def residuals(fs: FactorSet):
-        sim.set_factors(fs)
-        return _stack(fly_all(sim, tests))[0], labels
-
-    return residuals
 
 
 # --------------------------------------------------------------------------- errors and diagnosis
@@ -381,188 +366,21 @@ def structured_axes(diag: Mapping[str, ChannelDiagnosis]) -> tuple[str, ...]:
     return tuple(dict.fromkeys(d.axis for d in diag.values() if d.structured))
 
 
+def independent_share(d: ChannelDiagnosis) -> float:
+    """The share of a channel's samples that are independent (its effective samples, from the
+    lag-1 autocorrelation of its residual, over its samples): the samples of a time history are
+    correlated, and a likelihood that counts each as independent overstates the evidence by
+    the inverse of this share (a BIC change of -45,000 beside 0 % explained)."""
+    s = d.n_effective / d.n if d.n else math.nan
+    return min(1.0, s) if math.isfinite(s) else 1.0
+
+
 def noise_in_scales(d: ChannelDiagnosis) -> float:
     """A channel's noise in units of its scale for the likelihood: the estimate, at least
     :data:`~.closeloop.NOISE_FLOOR`; the scale itself where no estimate exists (asks for more
     evidence, never less)."""
     s = d.noise / d.scale
     return max(s, NOISE_FLOOR) if math.isfinite(s) else 1.0
-
-
-# --------------------------------------------------------------------------- candidates
-@dataclass
-class DynamicCandidate:
-    effect: str
-    round: int
-    axis: str                              # the axis of its force or moment
-    factors: dict[str, float]
-    stderr: dict[str, float | None]
-    rss: tuple[float, float]               # all samples (/scale), before and after its fit
-    n_samples: int
-    delta_bic: float
-    material: float                        # largest change of a sample / its scale
-    explained: dict[str, float] = field(default_factory=dict)   # share of each structured channel explained
-    share: float = 0.0                     # share of the structure of the channels it moves (net of damage)
-    cv: tuple[float, float] | None = None  # cross-validated residual sum of squares, without and with
-    accepted: bool = False
-    reason: str = ""
-    kind: str = "effect"                   # effect | term | factor | inertia (:class:`Change`)
-
-    @property
-    def score(self) -> float:
-        return -self.delta_bic
-
-    def as_dict(self) -> dict:
-        return {"effect": self.effect, "kind": self.kind, "round": self.round, "axis": self.axis,
-                "score": _js(self.score),
-                "factor": dict(self.factors), "stderr": {k: _js(v) for k, v in self.stderr.items()},
-                "delta_bic": _js(round(self.delta_bic, 3)), "rss": [_js(x) for x in self.rss],
-                "n_samples": self.n_samples, "material": _js(round(self.material, 3)),
-                "explained": {k: _js(round(v, 3)) for k, v in self.explained.items()},
-                "explained_share": _js(round(self.share, 3)),
-                "cross_validated": [_js(x) for x in self.cv] if self.cv else None,
-                "accepted": self.accepted, "reason": self.reason}
-
-
-@dataclass
-class _Round:
-    """The model's residuals at the start of a round, against which candidates are scored."""
-
-    number: int
-    diagnosis: dict[str, ChannelDiagnosis]
-    residuals: np.ndarray
-    values: np.ndarray
-    per_channel: dict[str, float]
-    structure: dict[str, float]         # each structured channel's sum of squares beyond its noise (/scale^2)
-
-
-def _start_round(number: int, responses: Sequence[Response], diag: dict[str, ChannelDiagnosis]) -> _Round:
-    r, v, ch = _stack(responses)
-    per = _per_channel(r, ch)
-    counts = {c: int(np.sum(ch == c)) for c in per}
-    structure = {c: max(0.0, per[c] - counts[c] * (diag[c].noise / diag[c].scale) ** 2)
-                 for c in per if c in diag and diag[c].structured}
-    return _Round(number, diag, r, v, per, structure)
-
-
-# --------------------------------------------------------------------------- candidate changes
-@dataclass(frozen=True)
-class Change:
-    """A candidate change of the model: a library effect or a synthesized term (its XML added,
-    its own factors fitted), an existing calibration factor refitted alone, or a moment of
-    inertia scaled (the aircraft file's ``mass_balance``)."""
-
-    name: str
-    kind: str                            # effect | term | factor | inertia
-    axis: str                            # roll | pitch | yaw: the axis of its force or moment
-    effect: Effect | None = None
-    target: str = ""                     # factor: its name; inertia: ixx, iyy or izz
-
-    @classmethod
-    def of_effect(cls, eff: Effect, kind: str = "effect") -> "Change":
-        return cls(eff.name, kind, effect_axis(eff) or "", eff)
-
-    @property
-    def k(self) -> int:
-        """Its number of fitted coefficients."""
-        return len(self.effect.factors) if self.effect is not None else 1
-
-    def acts_on(self) -> tuple[str, ...]:
-        return COUPLED.get(self.axis, ())
-
-    def companions(self) -> list[str]:
-        """Stage-2b factors refitted with it once added (those it duplicates excepted)."""
-        same = self.effect.same_as if self.effect is not None else ()
-        return [f for f in step_factors(f"{self.axis} dynamics") if f not in same] if self.axis else []
-
-
-@dataclass
-class Fitted:
-    """A change fitted alone: its values (effect factors by label; a factor by name; an inertia
-    as ``<axis>_scale``), their standard errors, and the factor set the trial flies."""
-
-    values: dict[str, float]
-    stderr: dict[str, float | None]
-    factors: FactorSet
-
-
-def _fit_effect(current: Simulator, ch: Change, factors: FactorSet, tests) -> tuple[Simulator, Fitted]:
-    trial = current.clone()
-    try:
-        trial.add_effect(ch.effect)
-        extra = ch.effect.as_factors()
-        start = factors.with_extra(extra)
-        trial.set_factors(start)
-        fr = fit(f"candidate {ch.name}", list(extra), start, _residual_function(trial, tests), sim=trial,
-                 prior=STEP_PRIOR, prior_center=start, legs=LEGS[-2:], max_nfev=CANDIDATE_NFEV)
-        trial.set_factors(fr.final)
-    except BaseException:
-        trial.close()
-        raise
-    return trial, Fitted({k: fr.final[k] for k in extra}, dict(fr.stderr), fr.final)
-
-
-def _fit_factor(current: Simulator, ch: Change, factors: FactorSet, tests) -> tuple[Simulator, Fitted]:
-    """An existing factor fitted alone, without a prior: the data say where it stands."""
-    trial = current.clone()
-    try:
-        fr = fit(f"candidate {ch.name}", [ch.target], factors, _residual_function(trial, tests), sim=trial,
-                 prior=0.0, legs=LEGS[-2:], max_nfev=CANDIDATE_NFEV)
-        trial.set_factors(fr.final)
-    except BaseException:
-        trial.close()
-        raise
-    return trial, Fitted({ch.target: fr.final[ch.target]}, dict(fr.stderr), fr.final)
-
-
-def _fit_inertia(current: Simulator, ch: Change, factors: FactorSet, tests) -> tuple[Simulator, Fitted]:
-    """A moment of inertia scaled by the factor that minimizes the residuals (bounded Brent
-    search over :data:`INERTIA_SCALES`: one reload and one flight of the tests per evaluation)."""
-    trial = current.clone()
-    try:
-        base = trial.moment_of_inertia(ch.target)
-
-        def cost(s: float) -> float:
-            trial.set_moment_of_inertia(ch.target, base * s)
-            r = _stack(fly_all(trial, tests))[0]
-            return float(r @ r)
-
-        best = minimize_scalar(cost, bounds=INERTIA_SCALES, method="bounded",
-                               options={"xatol": 1e-3, "maxiter": CANDIDATE_NFEV})
-        trial.set_moment_of_inertia(ch.target, base * float(best.x),
-                                    f"close-loop: {ch.target} x {float(best.x):.4g} (fitted to the time histories)")
-    except BaseException:
-        trial.close()
-        raise
-    return trial, Fitted({f"{ch.target}_scale": float(best.x)}, {}, factors)
-
-
-FITS = {"effect": _fit_effect, "term": _fit_effect, "factor": _fit_factor, "inertia": _fit_inertia}
-
-
-def fit_change(current: Simulator, ch: Change | Effect, factors: FactorSet, tests) -> tuple[Simulator, Fitted]:
-    """A copy of ``current`` with the change fitted alone on ``tests`` (the caller closes it)."""
-    ch = Change.of_effect(ch) if isinstance(ch, Effect) else ch
-    return FITS[ch.kind](current, ch, factors, tests)
-
-
-def _score(start: _Round, ch: Change, fitted: Fitted, responses: Sequence[Response]) -> DynamicCandidate:
-    """A fitted candidate scored against the round's start: evidence, materiality, explained share."""
-    r1, v1, ch_rows = _stack(responses)
-    per1 = _per_channel(r1, ch_rows)
-    explained = {c: (start.per_channel[c] - per1.get(c, 0.0)) / s for c, s in start.structure.items() if s > 0}
-    own = sum(s for c, s in start.structure.items() if CHANNEL_AXIS[c] in ch.acts_on())
-    rss0, rss1 = float(start.residuals @ start.residuals), float(r1 @ r1)
-    share = (rss0 - rss1) / own if own > 0 else 0.0
-    chi = sum((start.per_channel[c] - per1.get(c, 0.0)) / noise_in_scales(start.diagnosis[c]) ** 2
-              for c in start.per_channel if c in start.diagnosis)
-    dbic = -chi + ch.k * math.log(max(2, r1.size))
-    dv = np.abs(v1 - start.values)
-    material = float(np.nanmax(dv)) if np.any(np.isfinite(dv)) else math.nan
-    c = DynamicCandidate(ch.name, start.number, ch.axis, dict(fitted.values), dict(fitted.stderr), (rss0, rss1),
-                         int(r1.size), dbic, material, explained, share, kind=ch.kind)
-    c.reason = "; ".join(evidence_failures(dbic, material, own, share))
-    return c
 
 
 # --------------------------------------------------------------------------- the screen (equation error)
@@ -642,12 +460,13 @@ def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests, diag)
 
 
 def _named_change(r: Ranked, effects: Mapping[str, Effect]) -> Change:
+    start = tuple((c.split(":", 1)[1], float(x)) for c, x in zip(r.columns, r.estimate))
     if r.kind == "effect":
-        return Change.of_effect(effects[r.target])
+        return replace(Change.of_effect(effects[r.target], axis=effect_axis(effects[r.target]) or ""), start=start)
     axis = AXIS_OF_EE[r.axes[0]] if r.kind == "factor" else next(a for a, i in INERTIA_OF.items() if i == r.target)
     if r.kind == "factor":
         axis = next((a for a in ("roll", "pitch", "yaw") if r.target in step_factors(f"{a} dynamics")), axis)
-    return Change(f"{r.kind} {r.target}", r.kind, axis, target=r.target)
+    return Change(f"{r.kind} {r.target}", r.kind, axis, target=r.target, start=start)
 
 
 def _synthesized_change(sel: Selection, lin: Linearization, tests, named: list[Change]) -> Change | None:
@@ -658,29 +477,20 @@ def _synthesized_change(sel: Selection, lin: Linearization, tests, named: list[C
         axis = next((a for a in ("roll", "pitch", "yaw") if f in step_factors(f"{a} dynamics")), None)
         if axis is None:
             return None
-        return Change(f"factor {f}", "factor", axis, target=f)
+        return Change(f"factor {f}", "factor", axis, target=f, start=((f, _factor_units(f, sel)),))
     moved = tuple(dict.fromkeys(AXIS_OF_EE[t.axis] for t in sel.terms))
     eff = term_effect(sel.terms, sel.coefficients, source=f"{len(tests)} time histories (equation error)",
                       affects=[c for a in moved for c in AXIS_CHANNELS[a]])
-    return Change(eff.name, "term", moved[0], eff)
+    return Change(eff.name, "term", moved[0], eff,
+                  start=tuple((eff.label(f), k) for f, k in zip(eff.factors, sel.coefficients)))
 
 
-def _candidates(start: _Round, current: Simulator, changes: Sequence[Change], factors: FactorSet,
-                tests: Sequence[RecordedTest], say) -> list[DynamicCandidate]:
-    """The finalists, each fitted alone by flying the tests and scored."""
-    tried = []
-    for ch in changes:
-        try:
-            trial, fitted = fit_change(current, ch, factors, tests)
-        except CalibError as exc:                    # a candidate that breaks the model is rejected
-            say(f"round {start.number}: {ch.name}: fit failed ({exc})")
-            continue
-        with trial:
-            c = _score(start, ch, fitted, fly_all(trial, tests))
-        tried.append(c)
-        say(f"round {start.number}: {ch.name:34s} BIC {c.delta_bic:+11.1f}  explains {100 * c.share:5.0f} %  "
-            f"{'passes the fit tests' if not c.reason else 'rejected: ' + c.reason}")
-    return tried
+def _factor_units(name: str, sel: Selection) -> float:
+    """A single selected term's coefficient in its factor's units: the factors of
+    :data:`~.terms.SAME_FORM` add ``K x`` (K_Cm_alpha) or subtract it (the damping factors,
+    ``-K x``; K_cm_offset and the slopes: no estimate, 0)."""
+    k = sel.coefficients[0]
+    return {"K_Cm_alpha": k, "K_Cmq": -k, "K_Clp": -k, "K_Cnr": -k}.get(name, 0.0)
 
 
 def maneuver_folds(n_tests: int, folds: int = CV_FOLDS) -> list[list[int]]:
@@ -692,64 +502,8 @@ def maneuver_folds(n_tests: int, folds: int = CV_FOLDS) -> list[list[int]]:
 def cross_validate(current: Simulator, ch: Change | Effect, factors: FactorSet, tests: Sequence[RecordedTest]) -> float:
     """Residual sum of squares of every maneuver predicted by a fit of the change that did not
     see it; NaN with fewer than two maneuvers (nothing to predict from)."""
-    folds = maneuver_folds(len(tests))
-    if len(folds) < 2:
-        return math.nan
-    total = 0.0
-    for held in folds:
-        trial, _ = fit_change(current, ch, factors, [t for i, t in enumerate(tests) if i not in held])
-        with trial:
-            r = _stack(fly_all(trial, [tests[i] for i in held]))[0]
-        total += float(r @ r)
-    return total
-
-
-def _best_out_of_sample(tried: list[DynamicCandidate], start: _Round, current: Simulator,
-                        changes: Mapping[str, Change], factors: FactorSet, tests: Sequence[RecordedTest],
-                        say) -> DynamicCandidate | None:
-    """The strongest candidate that passed the fit tests and pays off in cross-validation."""
-    cv0 = float(start.residuals @ start.residuals)
-    for c in sorted((c for c in tried if not c.reason), key=lambda c: c.delta_bic):
-        cv1 = cross_validate(current, changes[c.effect], factors, tests)
-        c.cv = (cv0, cv1)
-        if pays_off_out_of_sample(cv0, cv1):
-            return c
-        c.reason = (f"does not pay off out of sample: cross-validated residuals {cv0:.3g} -> {cv1:.3g} "
-                    f"(needs -{100 * MIN_HELD_GAIN:.0f} %, folds of whole maneuvers)")
-        say(f"round {c.round}: {c.effect}: {c.reason}")
-    return None
-
-
-def _add(current: Simulator, ch: Change, factors: FactorSet, cand: DynamicCandidate) -> tuple[Simulator, FactorSet]:
-    """A copy of ``current`` with the change at its fitted values."""
-    trial = current.clone()
-    try:
-        if ch.effect is not None:
-            trial.add_effect(ch.effect)
-            fs = factors.with_extra(ch.effect.as_factors(), cand.factors)
-        elif ch.kind == "factor":
-            fs = factors.updated(cand.factors)
-        else:
-            s = cand.factors[f"{ch.target}_scale"]
-            trial.set_moment_of_inertia(ch.target, trial.moment_of_inertia(ch.target) * s,
-                                        f"close-loop: {ch.target} x {s:.4g} (fitted to the time histories)")
-            fs = factors
-        trial.set_factors(fs)
-    except BaseException:
-        trial.close()
-        raise
-    return trial, fs
-
-
-def _refit(rnd: int, current: Simulator, added: list[Change], factors: FactorSet,
-           tests: Sequence[RecordedTest], say) -> FitResult:
-    """Every added effect refitted with the stage-2b factors of its axis."""
-    names = list(factors.extra)
-    for ch in added:
-        names += [f for f in ch.companions() if f not in names]
-    say(f"round {rnd}: added {added[-1].name}; refit of {', '.join(names)}")
-    return fit(f"refit after {added[-1].name}", names, factors, _residual_function(current, tests), sim=current,
-               prior=STEP_PRIOR, prior_center=factors, legs=LEGS[-2:], max_nfev=REFIT_NFEV)
+    ch = Change.of_effect(ch, axis=effect_axis(ch) or "") if isinstance(ch, Effect) else ch
+    return loop_cross_validate(TimeHistoryEvidence(tests, {}), current, ch, factors)
 
 
 # --------------------------------------------------------------------------- the result and the loop
@@ -765,7 +519,7 @@ class CloseLoopDynamicResult:
     after: list[Response]
     diagnosis_before: dict[str, ChannelDiagnosis]
     diagnosis_after: dict[str, ChannelDiagnosis]
-    candidates: list[DynamicCandidate]
+    candidates: list[Candidate]
     added: list[str]
     refits: list[FitResult]
     factors: FactorSet
@@ -822,29 +576,67 @@ def check_tests(tests: Sequence[RecordedTest]) -> None:
         raise InputError("recorded tests", problems)
 
 
-def _round(rnd: int, current: Simulator, factors: FactorSet, lib: Mapping[str, Effect], tests, diag, responses,
-           say) -> tuple[Screen, list[DynamicCandidate], DynamicCandidate | None, dict[str, Change]]:
-    start = _start_round(rnd, responses, diag)
-    scr, changes = screen(rnd, current, lib, tests, diag)
-    say(f"round {rnd}: equation error on {scr.rows} rows of {', '.join(scr.axes)} in {scr.wall_time_s:.1f} s; "
-        f"finalists: {', '.join(scr.finalists) or 'none'}")
-    by_name = {c.name: c for c in changes}
-    # named candidates first (effects, factors, inertias); a term is synthesized only when none explains
-    named = [c for c in changes if c.kind != "term"]
-    tried = _candidates(start, current, named, factors, tests, say)
-    best = _best_out_of_sample(tried, start, current, by_name, factors, tests, say)
-    if best is None:
-        terms = _candidates(start, current, [c for c in changes if c.kind == "term"], factors, tests, say)
-        tried += terms
-        best = _best_out_of_sample(terms, start, current, by_name, factors, tests, say)
-    if best is not None:
-        best.accepted = True
-        best.reason = (f"accepted: strongest evidence; out of sample {best.cv[0]:.3g} -> {best.cv[1]:.3g} "
-                       f"({len(maneuver_folds(len(tests)))}-fold cross-validation over whole maneuvers)")
-        for c in tried:
-            if not c.reason:
-                c.reason = f"passes the fit tests; weaker evidence than {best.effect}"
-    return scr, tried, best, by_name
+class TimeHistoryEvidence:
+    """Recorded maneuvers as evidence for the loop (:mod:`.loop`): a row per response channel
+    and recorded sample, (model - data)/scale; every maneuver fitted, cross-validation over
+    folds of whole maneuvers; the candidates: the finalists of the equation-error screen of the
+    most structured axis (:func:`screen`), its synthesized terms when no named one passes."""
+
+    kind = "time histories"
+
+    def __init__(self, tests: Sequence[RecordedTest], lib: dict[str, Effect]):
+        self.tests, self.lib = list(tests), lib
+        self.screens: list[Screen] = []
+        self._terms: list[Change] = []
+
+    def rows(self, sim: Simulator, part) -> Rows:
+        r, v, ch = _stack(fly_all(sim, [self.tests[i] for i in part]))
+        labels = [f"{self.tests[i].id} {c} t={s:.2f}" for i in part for c in response_channels(self.tests[i])
+                  for s in self.tests[i].time_s]
+        return Rows(r, ch, v, labels)
+
+    def diagnose(self, sim: Simulator) -> dict[str, ChannelDiagnosis]:
+        return diagnose_responses(fly_all(sim, self.tests))
+
+    def noise(self, d: ChannelDiagnosis) -> float:
+        return noise_in_scales(d)
+
+    def independent_share(self, d: ChannelDiagnosis) -> float:
+        return independent_share(d)
+
+    def parts(self) -> tuple[list[int], list[int]]:
+        return list(range(len(self.tests))), []
+
+    def folds(self) -> list[tuple[list[int], list[int]]]:
+        every = range(len(self.tests))
+        return [([i for i in every if i not in held], held) for held in maneuver_folds(len(self.tests))]
+
+    def moves(self, ch: Change) -> tuple[str, ...]:
+        return tuple(c for c in CHANNEL_SCALES if CHANNEL_AXIS[c] in COUPLED.get(ch.axis, ()))
+
+    def named(self, rnd: int, current: Simulator, diag, factors: FactorSet) -> list[Change]:
+        scr, changes = screen(rnd, current, self.lib, self.tests, diag)
+        self.screens.append(scr)
+        self._terms = [c for c in changes if c.kind == "term"]
+        return [c for c in changes if c.kind != "term"]
+
+    def synthesized(self, rnd: int, current: Simulator, diag, factors: FactorSet, start: Round) -> list[Change]:
+        return self._terms
+
+    def companions(self, ch: Change) -> list[str]:
+        same = ch.effect.same_as if ch.effect is not None else ()
+        return [f for f in step_factors(f"{ch.axis} dynamics") if f not in same] if ch.axis else []
+
+    def fit_options(self, what: str) -> dict:
+        if what == "candidate":
+            return {"prior": STEP_PRIOR, "prior_center": None, "legs": CANDIDATE_LEGS, "max_nfev": CANDIDATE_NFEV}
+        return {"prior": STEP_PRIOR, "prior_center": None, "legs": LEGS[-2:], "max_nfev": REFIT_NFEV}
+
+    def judge(self, ch: Change, cand: Candidate, current: Simulator, factors: FactorSet) -> list[str]:
+        return []
+
+    def cross_validate(self, current: Simulator, ch: Change, factors: FactorSet) -> float:
+        return loop_cross_validate(self, current, ch, factors)
 
 
 def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects: Mapping[str, Effect] | None = None,
@@ -856,43 +648,16 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
     say = progress or (lambda s: None)
     tests = list(tests)
     check_tests(tests)
-    lib = default_effects() if effects is None else dict(effects)
+    ev = TimeHistoryEvidence(tests, default_effects() if effects is None else dict(effects))
     before = fly_all(sim, tests)
     diag0 = diagnose_responses(before)
     for c, d in diag0.items():
         say(f"diagnosis {c}: {'STRUCTURED' if d.structured else 'noise'}: {d.reason}")
-    candidates, added, refits, screens = [], [], [], []
-    with ExitStack() as boxes:
-        current = boxes.enter_context(sim.clone())
-        factors, responses, diag = current.factors, before, diag0
-        for rnd in range(1, max_effects + 1):
-            if not structured_axes(diag):
-                say(f"round {rnd}: no structured residual: nothing to add")
-                break
-            scr, tried, best, changes = _round(rnd, current, factors, lib, tests, diag, responses, say)
-            screens.append(scr)
-            candidates += tried
-            if best is None:
-                break
-            ch = changes[best.effect]
-            trial, factors = _add(current, ch, factors, best)
-            boxes.enter_context(trial)
-            current.close()
-            current = trial
-            added.append(ch)
-            if ch.effect is not None:
-                lib[ch.name] = ch.effect
-            refits.append(_refit(rnd, current, added, factors, tests, say))
-            factors = refits[-1].final
-            current.set_factors(factors)
-            responses = fly_all(current, tests)
-            diag = diagnose_responses(responses)
-        after = fly_all(current, tests)
-        tree = current.aircraft_tree()
+    run = run_loop(ev, sim, max_effects=max_effects, diagnosis=diag0, final=lambda s: fly_all(s, tests), progress=say)
     notes = [f"{r.test.id}: not flown ({r.failure}); its samples count as failures" for r in before if r.failure]
-    return CloseLoopDynamicResult(sim.name, sim.root, tests, before, after, diag0, diagnose_responses(after),
-                                  candidates, [c.name for c in added], refits, factors, tree,
-                                  time.perf_counter() - t0, notes, screens)
+    return CloseLoopDynamicResult(sim.name, sim.root, tests, before, run.final, diag0, diagnose_responses(run.final),
+                                  run.candidates, run.added_names, run.refits, run.factors, run.tree,
+                                  time.perf_counter() - t0, notes, ev.screens)
 
 
 # --------------------------------------------------------------------------- files
@@ -906,9 +671,3 @@ def run_close_loop_dynamic(root: Path | str, name: str, flight_test, *,
         res = close_loop_dynamic(sim, tests, progress=progress)
     res.notes.append(f"model: {name}; {len(tests)} time histories: " + ", ".join(f"{t.id} ({t.kind})" for t in tests))
     return res
-
-
-def write_aircraft(result: CloseLoopDynamicResult, root: Path, out_name: str) -> Path:
-    """Write the aircraft with its added effects as ``aircraft/<out_name>/`` of ``root``."""
-    return write_derived(AircraftPaths(result.root, result.aircraft), result.aircraft_tree, result.factors,
-                         AircraftPaths(Path(root), out_name))

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..calibration.closeloop import MATERIAL, MIN_EVIDENCE, MIN_EXPLAINED, MIN_HELD_GAIN
+from ..calibration.loop import MATERIAL, MIN_EVIDENCE, MIN_EXPLAINED, MIN_HELD_GAIN
 from ..calibration.closeloop_dynamic import CloseLoopDynamicResult, structured_axes
 from ..data.timehistory import CHANNELS
 from ..dynamics import AXIS_CHANNELS, CHANNEL_SCALES

@@ -1,0 +1,511 @@
+"""The close-the-loop engine: one loop for every kind of evidence.
+
+diagnose -> candidates -> fit -> evidence -> add -> refit, round after round, until nothing
+passes; the same rules judge every candidate on every kind of data. What differs per kind of
+evidence is an adapter (:class:`Evidence`): what a residual row is and its scale, how the
+residual is diagnosed, how the points or maneuvers form folds, which candidates a round
+tries and how a candidate is flown. :mod:`.closeloop` adapts trims (POH tables, flight-test
+snapshots, flap climbs, G1000 segments), :mod:`.closeloop_dynamic` time histories.
+
+A candidate is a :class:`Change`: a library effect or a synthesized term (XML added, its own
+factors fitted), an existing calibration factor refitted alone, or a moment of inertia scaled.
+Named candidates (effects, factors, inertias) are tried first; synthesized terms only when
+none passes. Each is fitted alone on the evidence's fitted part and scored against the
+round's start (:func:`score`): the change of the Bayesian information criterion with each
+metric's residuals scaled by its noise and counted by its independent samples, the share of
+the structured residual it explains in the metrics it moves (net of what it spoils), and
+how far it moves a prediction. The strongest that passes pays off out of sample (folds of the
+evidence: points, or whole maneuvers) or is refused; the test it failed is its reason. Every
+test is written as what passing requires, so a NaN fails it.
+"""
+from __future__ import annotations
+
+import math
+import time
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Mapping, Protocol, Sequence
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from ..errors import CalibError
+from ..factors import Factor, FactorSet
+from ..jsbsim.product import AircraftPaths, write_derived
+from ..jsbsim.simulator import Simulator
+from .effects import Effect
+from .fit import FitResult, fit
+
+MIN_EVIDENCE = 10.0      # BIC decrease for "very strong" evidence (Kass & Raftery)
+MIN_HELD_GAIN = 0.10     # cross-validated residual sum of squares must fall by 10 %
+MATERIAL = 0.25          # the effect must move a prediction by a quarter of a tolerance (scale)
+MIN_EXPLAINED = 0.6      # share of the structured residual (beyond noise) the effect must explain
+NOISE_FLOOR = 0.02       # smallest noise the likelihood assumes, in tolerances (scales)
+MAX_EFFECTS = 4
+INERTIA_SCALES = (0.4, 2.5)  # the range a moment of inertia may be scaled over
+INERTIA_BRACKET = 0.25       # the search about a start estimate (+-)
+RULES = {"min_evidence_bic_decrease": MIN_EVIDENCE, "min_explained_share": MIN_EXPLAINED,
+         "material_share_of_scale": MATERIAL, "min_cross_validated_gain": MIN_HELD_GAIN}
+
+
+# --------------------------------------------------------------------------- the rules
+def evidence_failures(delta_bic: float, material: float, structure: float, share: float) -> list[str]:
+    """Why a candidate fails the in-sample tests; empty if it passes them all."""
+    why = []
+    if not delta_bic <= -MIN_EVIDENCE:
+        why.append(f"evidence too weak (BIC change {delta_bic:+.1f}, needs <= -{MIN_EVIDENCE:g})")
+    if not material >= MATERIAL:
+        why.append(f"moves predictions by {material:.2f} tolerance at most (needs {MATERIAL:g})")
+    if not structure > 0:
+        why.append("no structured residual in the metrics it moves")
+    elif not share >= MIN_EXPLAINED:
+        why.append(f"explains {100 * share:.0f} % of the structured residual (needs {100 * MIN_EXPLAINED:.0f} %)")
+    return why
+
+
+def pays_off_out_of_sample(cv_without: float, cv_with: float) -> bool:
+    """The cross-validated residual sum of squares falls by at least :data:`MIN_HELD_GAIN`."""
+    return bool(cv_with <= (1.0 - MIN_HELD_GAIN) * cv_without)
+
+
+# --------------------------------------------------------------------------- what an evidence kind provides
+@dataclass(frozen=True)
+class Rows:
+    """Residual rows (model - data)/tolerance of some points, with each row's metric (""
+    for a penalty row: a failed trim or flight, unit variance) and the model's value in
+    tolerance units (NaN where none: materiality)."""
+
+    residual: np.ndarray
+    metric: np.ndarray
+    values: np.ndarray
+    labels: list[str]
+
+    def rss(self) -> float:
+        return float(self.residual @ self.residual)
+
+    def per_metric(self) -> dict[str, float]:
+        return {m: float(np.sum(self.residual[self.metric == m] ** 2)) for m in dict.fromkeys(self.metric) if m}
+
+    def penalty(self) -> float:
+        return float(np.sum(self.residual[self.metric == ""] ** 2))
+
+
+class Diagnosis(Protocol):
+    structured: bool
+    reason: str
+
+
+class Evidence(Protocol):
+    """An adapter of one kind of evidence (module doc)."""
+
+    kind: str
+
+    def rows(self, sim: Simulator, part: Sequence[int]) -> Rows: ...
+    def diagnose(self, sim: Simulator) -> Mapping[str, Diagnosis]: ...
+    def noise(self, d: Diagnosis) -> float: ...                      # in tolerance units
+    def independent_share(self, d: Diagnosis) -> float: ...
+    def parts(self) -> tuple[list[int], list[int]]: ...              # fitted, held out
+    def folds(self) -> list[tuple[list[int], list[int]]]: ...        # (train, test) of cross-validation
+    def moves(self, ch: "Change") -> tuple[str, ...]: ...            # the metrics a change acts on
+    def named(self, rnd: int, current: Simulator, diag, factors: FactorSet) -> list["Change"]: ...
+    def synthesized(self, rnd: int, current: Simulator, diag, factors: FactorSet, start: "Round") -> list["Change"]: ...
+    def companions(self, ch: "Change") -> list[str]: ...
+    def fit_options(self, what: str) -> dict: ...                    # 'candidate' or 'refit'
+    def judge(self, ch: "Change", cand: "Candidate", current: Simulator, factors: FactorSet) -> list[str]: ...
+    def cross_validate(self, current: Simulator, ch: "Change", factors: FactorSet) -> float: ...   # cross_validate()
+
+
+# --------------------------------------------------------------------------- candidates
+@dataclass(frozen=True)
+class Change:
+    """A candidate change of the model: a library effect or a synthesized term (its XML added,
+    its own factors fitted), an existing calibration factor refitted alone, or a moment of
+    inertia scaled (the aircraft file's ``mass_balance``)."""
+
+    name: str
+    kind: str                            # effect | term | factor | inertia
+    axis: str = ""                       # roll | pitch | yaw (time histories; "" where unknown)
+    effect: Effect | None = None
+    target: str = ""                     # factor: its name; inertia: ixx, iyy or izz
+    start: tuple[tuple[str, float], ...] = ()   # where its fit starts (an estimate), by factor label
+
+    @classmethod
+    def of_effect(cls, eff: Effect, kind: str = "effect", axis: str = "") -> "Change":
+        return cls(eff.name, kind, axis, eff)
+
+    @property
+    def k(self) -> int:
+        """Its number of fitted coefficients."""
+        return len(self.effect.factors) if self.effect is not None else 1
+
+    def labels(self) -> list[str]:
+        """The factors its fit moves (an inertia: none of the factor set)."""
+        if self.effect is not None:
+            return list(self.effect.as_factors())
+        return [self.target] if self.kind == "factor" else []
+
+
+@dataclass
+class Candidate:
+    """A change fitted alone and scored against its round's start."""
+
+    effect: str
+    round: int
+    factors: dict[str, float]
+    stderr: dict[str, float | None]
+    rss_fit: tuple[float, float]            # before, after (fitted part)
+    rss_held: tuple[float, float] | None    # before, after (held-out part; None: none held out)
+    n: int                                  # residual rows of the fitted part
+    delta_bic: float
+    material: float                         # largest prediction change / tolerance (scale)
+    explained: dict[str, float] = field(default_factory=dict)   # share of each structured metric explained
+    share: float = 0.0                      # share of the structure of the metrics it moves (net of damage)
+    cv: tuple[float, float] | None = None   # cross-validated residual sum of squares, without and with
+    accepted: bool = False
+    reason: str = ""
+    affects: tuple[str, ...] = ()           # the metrics it moves
+    kind: str = "effect"
+    axis: str = ""
+
+    @property
+    def score(self) -> float:
+        return -self.delta_bic
+
+    def as_dict(self) -> dict:
+        js = _js
+        return {"effect": self.effect, "kind": self.kind, "round": self.round, "axis": self.axis or None,
+                "score": js(self.score), "factor": dict(self.factors),
+                "stderr": {k: js(v) for k, v in self.stderr.items()}, "delta_bic": js(round(self.delta_bic, 3)),
+                "rss_fit": [js(x) for x in self.rss_fit],
+                "rss_held": [js(x) for x in self.rss_held] if self.rss_held else None, "n": self.n,
+                "material": js(round(self.material, 3)),
+                "explained": {k: js(round(v, 3)) for k, v in self.explained.items()},
+                "explained_share": js(round(self.share, 3)),
+                "cross_validated": [js(x) for x in self.cv] if self.cv else None,
+                "accepted": self.accepted, "reason": self.reason}
+
+
+def _js(x):
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+# --------------------------------------------------------------------------- fitting a change
+@dataclass
+class Fitted:
+    """A change fitted alone: its values (factors by label; an inertia as ``<axis>_scale``),
+    their standard errors, and the factor set the trial flies."""
+
+    values: dict[str, float]
+    stderr: dict[str, float | None]
+    factors: FactorSet
+
+
+def _inside(f: Factor, value: float) -> float:
+    """A start value inside a factor's bounds (a twentieth of its range from either)."""
+    margin = 0.05 * (f.upper - f.lower)
+    return min(f.upper - margin, max(f.lower + margin, value))
+
+
+def _residuals(ev: Evidence, sim: Simulator, part: Sequence[int]):
+    def res(fs: FactorSet):
+        sim.set_factors(fs)
+        rows = ev.rows(sim, part)
+        return rows.residual, rows.labels
+    return res
+
+
+def _fit_effect(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
+                part: Sequence[int]) -> tuple[Simulator, Fitted]:
+    """An effect's (or term's) factors fitted alone, from its start estimate where it has one."""
+    trial = current.clone()
+    try:
+        trial.add_effect(ch.effect)
+        extra = ch.effect.as_factors()
+        neutral = factors.with_extra(extra)
+        start = neutral.updated({k: _inside(extra[k], v) for k, v in ch.start if k in extra})
+        trial.set_factors(start)
+        opts = ev.fit_options("candidate")
+        if "prior_center" in opts:
+            opts = {**opts, "prior_center": neutral}
+        fr = fit(f"candidate {ch.name}", list(extra), start, _residuals(ev, trial, part), sim=trial, **opts)
+        trial.set_factors(fr.final)
+    except BaseException:
+        trial.close()
+        raise
+    return trial, Fitted({k: fr.final[k] for k in extra}, dict(fr.stderr), fr.final)
+
+
+def _fit_factor(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
+                part: Sequence[int]) -> tuple[Simulator, Fitted]:
+    """An existing factor fitted alone, without a prior: the data say where it stands."""
+    trial = current.clone()
+    try:
+        f = factors.factor(ch.target)
+        start = factors.updated({ch.target: _inside(f, factors[ch.target] + dict(ch.start).get(ch.target, 0.0))})
+        opts = {k: v for k, v in ev.fit_options("candidate").items() if k != "prior_center"}
+        fr = fit(f"candidate {ch.name}", [ch.target], start, _residuals(ev, trial, part), sim=trial,
+                 **{**opts, "prior": 0.0})
+        trial.set_factors(fr.final)
+    except BaseException:
+        trial.close()
+        raise
+    return trial, Fitted({ch.target: fr.final[ch.target]}, dict(fr.stderr), fr.final)
+
+
+def _inertia_note(axis: str, scale: float) -> str:
+    return f"close-loop: {axis} x {scale:.4g} (fitted to the data)"
+
+
+def _fit_inertia(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
+                 part: Sequence[int]) -> tuple[Simulator, Fitted]:
+    """A moment of inertia scaled by the factor that minimizes the residuals: a bounded Brent
+    search about its start estimate (one reload and one evaluation of the part per step)."""
+    trial = current.clone()
+    try:
+        base = trial.moment_of_inertia(ch.target)
+
+        def cost(s: float) -> float:
+            trial.set_moment_of_inertia(ch.target, base * s)
+            return ev.rows(trial, part).rss()
+
+        s0 = 1.0 + dict(ch.start).get(ch.target, 0.0)
+        lo = max(INERTIA_SCALES[0], min(s0, INERTIA_SCALES[1]) - INERTIA_BRACKET)
+        hi = min(INERTIA_SCALES[1], lo + 2 * INERTIA_BRACKET)
+        best = minimize_scalar(cost, bounds=(lo, hi), method="bounded",
+                               options={"xatol": 2e-3, "maxiter": ev.fit_options("candidate").get("max_nfev", 20)})
+        s = float(best.x)
+        trial.set_moment_of_inertia(ch.target, base * s, _inertia_note(ch.target, s))
+    except BaseException:
+        trial.close()
+        raise
+    return trial, Fitted({f"{ch.target}_scale": s}, {}, factors)
+
+
+FITS = {"effect": _fit_effect, "term": _fit_effect, "factor": _fit_factor, "inertia": _fit_inertia}
+
+
+def fit_change(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
+               part: Sequence[int]) -> tuple[Simulator, Fitted]:
+    """A copy of ``current`` with the change fitted alone on ``part`` (the caller closes it)."""
+    return FITS[ch.kind](ev, current, ch, factors, part)
+
+
+# --------------------------------------------------------------------------- a round
+@dataclass
+class Round:
+    """The model's residuals at the start of a round, against which candidates are scored."""
+
+    number: int
+    diagnosis: Mapping[str, Diagnosis]
+    fitted: Rows
+    held_rss: float | None
+    structure: dict[str, float]        # each structured metric's sum of squares beyond its noise
+
+
+def start_round(ev: Evidence, number: int, current: Simulator, diag: Mapping[str, Diagnosis]) -> Round:
+    fitp, held = ev.parts()
+    rows = ev.rows(current, fitp)
+    per = rows.per_metric()
+    counts = {m: int(np.sum(rows.metric == m)) for m in per}
+    structure = {m: max(0.0, per[m] - counts[m] * ev.noise(diag[m]) ** 2)
+                 for m in per if m in diag and diag[m].structured}
+    return Round(number, diag, rows, ev.rows(current, held).rss() if held else None, structure)
+
+
+def score(ev: Evidence, start: Round, ch: Change, fitted: Fitted, trial: Simulator) -> Candidate:
+    """A fitted change scored against the round's start: evidence, materiality, explained share.
+    The likelihood is Gaussian with each metric's noise, its rows counted by their independent
+    share (penalty rows: unit variance, independent)."""
+    fitp, held = ev.parts()
+    r0, r1 = start.fitted, ev.rows(trial, fitp)
+    per0, per1 = r0.per_metric(), r1.per_metric()
+    diag = start.diagnosis
+    explained = {m: (per0[m] - per1.get(m, 0.0)) / s for m, s in start.structure.items() if s > 0}
+    moves = ev.moves(ch)
+    own = sum(v for m, v in start.structure.items() if m in moves)
+    share = (r0.rss() - r1.rss()) / own if own > 0 else 0.0
+    chi = sum(ev.independent_share(diag[m]) * (per0[m] - per1.get(m, 0.0)) / ev.noise(diag[m]) ** 2
+              for m in per0 if m in diag)
+    chi += r0.penalty() - r1.penalty()
+    n = sum(ev.independent_share(diag[m]) if m in diag else 1.0 for m in r0.metric)
+    dbic = -chi + ch.k * math.log(max(2.0, n))
+    both = np.isfinite(r0.values) & np.isfinite(r1.values) if len(r0.values) == len(r1.values) else None
+    material = float(np.max(np.abs(r1.values[both] - r0.values[both]))) if both is not None and np.any(both) else 0.0
+    held_rss = (start.held_rss, ev.rows(trial, held).rss()) if held else None
+    c = Candidate(ch.name, start.number, dict(fitted.values), dict(fitted.stderr), (r0.rss(), r1.rss()), held_rss,
+                  len(r0.residual), dbic, material, explained, share, affects=tuple(moves), kind=ch.kind, axis=ch.axis)
+    c.reason = "; ".join(evidence_failures(dbic, material, own, share))
+    return c
+
+
+def try_changes(ev: Evidence, start: Round, current: Simulator, changes: Sequence[Change], factors: FactorSet,
+                say) -> list[Candidate]:
+    """Each change fitted alone on the fitted part and scored; one that breaks the model is
+    rejected with the error named."""
+    fitp, _ = ev.parts()
+    tried = []
+    for ch in changes:
+        try:
+            trial, fitted = fit_change(ev, current, ch, factors, fitp)
+        except CalibError as exc:
+            say(f"round {start.number}: {ch.name}: fit failed ({exc})")
+            continue
+        with trial:
+            c = score(ev, start, ch, fitted, trial)
+        c.reason = "; ".join([c.reason] * bool(c.reason) + ev.judge(ch, c, current, factors))
+        tried.append(c)
+        say(f"round {start.number}: {ch.name:34s} BIC {c.delta_bic:+10.1f}  explains {100 * c.share:5.0f} %  "
+            f"{'passes the fit tests' if not c.reason else 'rejected: ' + c.reason}")
+    return tried
+
+
+def cross_validate(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet) -> float:
+    """Residual sum of squares of every fold predicted by a fit of the change that did not see
+    it (the evidence's folds); NaN with fewer than two folds."""
+    folds = ev.folds()
+    if len(folds) < 2:
+        return math.nan
+    total = 0.0
+    for train, test in folds:
+        trial, _ = fit_change(ev, current, ch, factors, train)
+        with trial:
+            total += ev.rows(trial, test).rss()
+    return total
+
+
+def best_out_of_sample(ev: Evidence, tried: list[Candidate], current: Simulator, changes: Mapping[str, Change],
+                       factors: FactorSet, say) -> Candidate | None:
+    """The strongest candidate that passed the fit tests and pays off in cross-validation."""
+    everything = sorted({i for _, test in ev.folds() for i in test})
+    for c in sorted((c for c in tried if not c.reason), key=lambda c: c.delta_bic):
+        cv0 = ev.rows(current, everything).rss()
+        cv1 = ev.cross_validate(current, changes[c.effect], factors)
+        c.cv = (cv0, cv1)
+        if pays_off_out_of_sample(cv0, cv1):
+            return c
+        c.reason = (f"does not pay off out of sample: cross-validated residuals {cv0:.3g} -> {cv1:.3g} "
+                    f"(needs -{100 * MIN_HELD_GAIN:.0f} %)")
+        say(f"round {c.round}: {c.effect}: {c.reason}")
+    return None
+
+
+def add(current: Simulator, ch: Change, factors: FactorSet, cand: Candidate) -> tuple[Simulator, FactorSet]:
+    """A copy of ``current`` with the change at its fitted values."""
+    trial = current.clone()
+    try:
+        if ch.effect is not None:
+            trial.add_effect(ch.effect)
+            fs = factors.with_extra(ch.effect.as_factors(), cand.factors)
+        elif ch.kind == "factor":
+            fs = factors.updated(cand.factors)
+        else:
+            s = cand.factors[f"{ch.target}_scale"]
+            trial.set_moment_of_inertia(ch.target, trial.moment_of_inertia(ch.target) * s, _inertia_note(ch.target, s))
+            fs = factors
+        trial.set_factors(fs)
+    except BaseException:
+        trial.close()
+        raise
+    return trial, fs
+
+
+def refit(ev: Evidence, rnd: int, current: Simulator, added: list[Change], factors: FactorSet, say) -> FitResult:
+    """Every added effect refitted with the calibration factors the evidence names for each
+    added change (fitted without it, they may have stood in for it)."""
+    names = list(factors.extra)
+    for ch in added:
+        names += [f for f in ev.companions(ch) if f not in names]
+    say(f"round {rnd}: added {added[-1].name}; refit of {', '.join(names) or 'nothing'}")
+    fitp, _ = ev.parts()
+    opts = ev.fit_options("refit")
+    if "prior_center" in opts:
+        opts = {**opts, "prior_center": factors}
+    return fit(f"refit after {added[-1].name}", names, factors, _residuals(ev, current, fitp), sim=current, **opts)
+
+
+# --------------------------------------------------------------------------- the loop
+@dataclass
+class LoopRun:
+    """What the loop did: every candidate, the changes added, the refits, the aircraft it ends
+    with (a parsed file and its factors) and what the evidence's ``final`` made of it."""
+
+    candidates: list[Candidate]
+    added: list[Change]
+    refits: list[FitResult]
+    factors: FactorSet
+    tree: object
+    final: object
+    diagnoses: list                     # each round's diagnosis
+    wall_time_s: float
+
+    @property
+    def added_names(self) -> list[str]:
+        return [c.name for c in self.added]
+
+
+def _round(ev: Evidence, rnd: int, current: Simulator, factors: FactorSet, diag,
+           say) -> tuple[list[Candidate], Candidate | None, dict[str, Change]]:
+    start = start_round(ev, rnd, current, diag)
+    named = ev.named(rnd, current, diag, factors)
+    by_name = {c.name: c for c in named}
+    tried = try_changes(ev, start, current, named, factors, say)
+    best = best_out_of_sample(ev, tried, current, by_name, factors, say)
+    if best is None:
+        terms = ev.synthesized(rnd, current, diag, factors, start)
+        by_name.update({c.name: c for c in terms})
+        more = try_changes(ev, start, current, terms, factors, say)
+        tried += more
+        best = best_out_of_sample(ev, more, current, by_name, factors, say)
+    if best is not None:
+        best.accepted = True
+        best.reason = (f"accepted: strongest evidence; out of sample {best.cv[0]:.3g} -> {best.cv[1]:.3g} "
+                       f"({len(ev.folds())}-fold cross-validation)")
+        for c in tried:
+            if not c.reason:
+                c.reason = f"passes the fit tests; weaker evidence than {best.effect}"
+    return tried, best, by_name
+
+
+def run_loop(ev: Evidence, sim: Simulator, *, max_effects: int = MAX_EFFECTS, diagnosis=None,
+             final: Callable[[Simulator], object] = lambda s: None,
+             progress: Callable[[str], None] | None = None) -> LoopRun:
+    """Close the loop on one kind of evidence (module doc). ``sim`` is left unchanged;
+    ``diagnosis``: the first round's, where the caller has it; ``final(sim)`` runs on the
+    aircraft the loop ends with before it closes (the evaluation a result reports)."""
+    t0 = time.perf_counter()
+    say = progress or (lambda s: None)
+    candidates, added, refits, diagnoses = [], [], [], []
+    with ExitStack() as boxes:
+        current = boxes.enter_context(sim.clone())
+        factors = current.factors
+        for rnd in range(1, max_effects + 1):
+            diag = diagnosis if rnd == 1 and diagnosis is not None else ev.diagnose(current)
+            diagnoses.append(diag)
+            if not any(d.structured for d in diag.values()):
+                say(f"round {rnd}: no structured residual: nothing to add")
+                break
+            tried, best, changes = _round(ev, rnd, current, factors, diag, say)
+            candidates += tried
+            if best is None:
+                break
+            ch = changes[best.effect]
+            trial, factors = add(current, ch, factors, best)
+            boxes.enter_context(trial)
+            current.close()
+            current = trial
+            added.append(ch)
+            refits.append(refit(ev, rnd, current, added, factors, say))
+            factors = refits[-1].final
+            current.set_factors(factors)
+        out = final(current)
+        tree = current.aircraft_tree()
+    return LoopRun(candidates, added, refits, factors, tree, out, diagnoses, time.perf_counter() - t0)
+
+
+def write_aircraft(result, root: Path, out_name: str) -> Path:
+    """Write the aircraft a loop ended with (a result with ``root``, ``aircraft``,
+    ``aircraft_tree`` and ``factors``) as ``aircraft/<out_name>/`` of ``root`` (the parent's
+    folder copied, its XML replaced), loadable by JSBSim and by this workbench."""
+    return write_derived(AircraftPaths(result.root, result.aircraft), result.aircraft_tree, result.factors,
+                         AircraftPaths(Path(root), out_name))
