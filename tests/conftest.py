@@ -1,4 +1,7 @@
+import fcntl
+import os
 import shutil
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -11,16 +14,47 @@ def repo() -> Path:
     return REPO
 
 
-@pytest.fixture(scope="session")
-def generated_root(tmp_path_factory) -> Path:
-    """A copy of the repository's JSBSim root with every aircraft regenerated from its geometry."""
-    from jsbsim_calib.generate import generate
-    root = tmp_path_factory.mktemp("root")
+AIRCRAFT_NAMES = sorted(p.parent.name for p in (REPO / "aircraft").glob("*/geometry.toml"))
+
+
+def _copy_root(root: Path) -> Path:
     for d in ("aircraft", "engine", "airfoils", "data", "scripts"):
         shutil.copytree(REPO / d, root / d)
-    names = sorted(p.parent.name for p in (REPO / "aircraft").glob("*/geometry.toml"))
-    for n in names:
-        generate(n, root)
+    return root
+
+
+@contextmanager
+def _locked(path: Path):
+    with open(path, "w") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        yield
+
+
+@pytest.fixture(scope="session")
+def generated_root(tmp_path_factory) -> Path:
+    """A copy of the repository's JSBSim root with every aircraft regenerated from its geometry,
+    made once per test run: pytest-xdist's workers share it, each generating the aircraft the
+    others are not generating (worker N starts with aircraft N, one lock per aircraft), so the
+    two aircraft are generated side by side, once."""
+    from jsbsim_calib.generate import generate
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    if worker is None:
+        root = _copy_root(tmp_path_factory.mktemp("root"))
+        for n in AIRCRAFT_NAMES:
+            generate(n, root)
+        return root
+    root = tmp_path_factory.getbasetemp().parent / "generated_root"
+    with _locked(root.with_suffix(".lock")):
+        if not (root / ".copied").is_file():
+            shutil.rmtree(root, ignore_errors=True)             # a worker that died half way
+            _copy_root(root)
+            (root / ".copied").touch()
+    k = int(worker.removeprefix("gw")) % len(AIRCRAFT_NAMES)
+    for n in AIRCRAFT_NAMES[k:] + AIRCRAFT_NAMES[:k]:
+        with _locked(root.parent / f"generated_root.{n}.lock"):
+            if not (root / f".generated-{n}").is_file():
+                generate(n, root)
+                (root / f".generated-{n}").touch()
     return root
 
 

@@ -12,7 +12,7 @@ import jsbsim
 import pytest
 
 from jsbsim_calib import __version__
-from jsbsim_calib.cli import EXIT_TARGETS_MISSED, build_parser, main, path_problems
+from jsbsim_calib.cli import EXIT_TARGETS_MISSED, _verdict_exit, build_parser, main, path_problems
 from jsbsim_calib.report.verdicts import TARGETS, Verdict, format_verdicts
 
 REPO = Path(__file__).resolve().parents[1]
@@ -93,6 +93,8 @@ def test_any_jsbsim_aircraft_by_name(capsys):
     out, err = capsys.readouterr()
     assert "does not state a maximum weight" in err
     assert "Verdicts of the c172p model" in out and "FAIL" in out          # the stock c172p: 178 fpm RMSE
+    assert main(["--root", str(root), "check", "c172p", "--executor", "serial"]) == 0
+    assert "stall: no steady glide below" in capsys.readouterr().out
 
 
 def test_check_words_the_stall_as_the_end_of_the_envelope(tmp_path, capsys):
@@ -106,3 +108,18 @@ def test_check_words_the_stall_as_the_end_of_the_envelope(tmp_path, capsys):
 
 def test_exit_code_for_missed_targets_is_documented():
     assert EXIT_TARGETS_MISSED == 3 and "3" in build_parser().epilog
+
+
+@pytest.mark.slow
+def test_calibrate_json_and_the_exit_code_of_missed_targets(tmp_path, capsys):
+    """SR20 stage 1 (not written): the verdicts as JSON, exit 3 when one is missed, 0 with --exit-zero."""
+    out = tmp_path / "cal.json"
+    argv = ["--root", str(REPO), "--quiet", "calibrate", "sr20", "--stage", "steady", "--no-write",
+            "--report-dir", str(tmp_path / "reports"), "--json", str(out), "--workers", "2"]
+    rc = main(argv)
+    d = json.loads(out.read_text())
+    missed = [v for v in d["verdicts"] if v["verdict"] == "FAIL"]
+    assert d["aircraft"] == "sr20" and d["written"] is False and d["targets_met"] == len(d["verdicts"]) - len(missed)
+    assert all(v["verdict"] in ("PASS", "FAIL") for v in d["verdicts"]) and "MISS" not in capsys.readouterr().out
+    assert rc == (EXIT_TARGETS_MISSED if missed else 0)
+    assert _verdict_exit(parse(*argv, "--exit-zero"), len(missed)) == 0

@@ -120,6 +120,7 @@ def test_synth_cli_is_deterministic_and_writes_the_snapshot_schema(tmp_path):
     ("control_rigging_offset_aileron", {"K": 1.2}, 13),
     ("engine_torque_roll", {"K": 1.5}, 11),
 ])
+@pytest.mark.slow
 def test_an_undeclared_library_effect_is_found_first_and_closes_the_residual(tmp_path, clean, effect, values, seed):
     ds = snapshots(tmp_path, make_truth(tmp_path, {effect: values}), seed)
     res = close_loop(clean, ds)
@@ -132,6 +133,7 @@ def test_an_undeclared_library_effect_is_found_first_and_closes_the_residual(tmp
     assert not res.unexplained()
 
 
+@pytest.mark.slow
 def test_a_pair_of_undeclared_effects_is_found(tmp_path, clean):
     ds = snapshots(tmp_path, make_truth(tmp_path, {"control_rigging_offset_rudder": {"K": -1.0},
                                                    "cg_offset": {"K": 0.15}}), 16)
@@ -142,6 +144,7 @@ def test_a_pair_of_undeclared_effects_is_found(tmp_path, clean):
     assert all(v == 100.0 for v in _within(res).values())
 
 
+@pytest.mark.slow
 def test_null_truth_adds_nothing_and_the_cli_writes_json_and_a_loadable_aircraft(tmp_path):
     ds_path = tmp_path / "null.csv"
     with Simulator.from_dir(REPO / "aircraft" / "c172", REPO) as truth:
@@ -166,6 +169,7 @@ def test_null_truth_adds_nothing_and_the_cli_writes_json_and_a_loadable_aircraft
     assert fdm.load_model("c172_null")
 
 
+@pytest.mark.slow
 def test_an_effect_outside_the_library_is_reported_not_attributed(tmp_path, clean):
     """A rolling moment growing with flap deflection (an asymmetric flap rigging): no library
     effect is attributed (the library alone, ``synthesize=False``; with synthesis the loop builds
@@ -180,6 +184,7 @@ def test_an_effect_outside_the_library_is_reported_not_attributed(tmp_path, clea
     assert "aileron_deg" in un and "flaps" in un["aileron_deg"][:3], un
 
 
+@pytest.mark.slow
 def test_written_aircraft_flies_like_the_closed_loop_model(tmp_path, clean):
     ds = snapshots(tmp_path, make_truth(tmp_path, {"control_rigging_offset_rudder": {"K": -1.0}}), 15, n=24)
     res = close_loop(clean, ds, max_effects=1)
@@ -197,6 +202,7 @@ def test_written_aircraft_flies_like_the_closed_loop_model(tmp_path, clean):
 
 
 # --------------------------------------------------------------------------- real data
+@pytest.mark.slow
 def test_real_c172_trims_without_pfactor_step_find_the_yaw_effect(tmp_path):
     from jsbsim_calib.workflow import run_close_loop
     res = run_close_loop(REPO, "c172", REPO / "data" / "c172_flight_test_snapshots.csv", skip_steps=("pfactor",))

@@ -140,6 +140,7 @@ def test_dynamic_effects_load_fly_and_move_what_they_say(clean):
 
 
 # --------------------------------------------------------------------------- (a) an undeclared yaw term
+@pytest.mark.slow
 def test_a_yaw_due_to_roll_rate_is_found_and_its_coefficient_recovered(clean, cn_p_records):
     tests = load_recorded_tests(cn_p_records)
     assert [t.kind for t in tests] == ["roll_doublet", "roll_step", "yaw_doublet"]
@@ -159,6 +160,7 @@ def test_a_yaw_due_to_roll_rate_is_found_and_its_coefficient_recovered(clean, cn
 
 
 # --------------------------------------------------------------------------- (b) the null case
+@pytest.mark.slow
 def test_b_a_clean_truth_adds_nothing(clean, tmp_path):
     tests = load_recorded_tests(records(tmp_path, REPO / "aircraft" / "c172", seed=8))
     res = close_loop_dynamic(clean, tests)
@@ -171,6 +173,7 @@ def test_b_a_clean_truth_adds_nothing(clean, tmp_path):
 
 
 # --------------------------------------------------------------------------- the command line
+@pytest.mark.slow
 def test_cli_writes_the_aircraft_report_and_json(tmp_path, cn_p_records):
     root = tmp_path / "root"
     for d in ("aircraft", "engine", "data", "airfoils"):
@@ -200,6 +203,7 @@ def test_cli_writes_the_aircraft_report_and_json(tmp_path, cn_p_records):
 
 
 # --------------------------------------------------------------------------- (c) NaN never passes
+@pytest.mark.slow
 def test_c_no_evidence_test_accepts_a_nan(clean, cn_p_records):
     """The trim loop's evidence rules, as this loop uses them, refuse a NaN in any quantity; a
     channel without a noise estimate weighs with its scale and is not structured; one maneuver

@@ -116,6 +116,7 @@ generate("c172", Path(sys.argv[1]), baseline=True)
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kill_at, expect", [(1, "old"), (3, "new")])
 def test_generate_killed_mid_commit_leaves_old_or_new_set(generated_root, tmp_path, kill_at, expect):
     """A real process killed (SIGKILL) while `generate --baseline` replaces a calibrated c172:
@@ -146,6 +147,7 @@ def _edit(path: Path, old: str, new: str) -> None:
     path.write_text(text.replace(old, new, 1))
 
 
+@pytest.mark.slow
 def test_hand_edit_refused_then_forced_with_a_backup(generated_root, tmp_path, capsys):
     root = copy_root(generated_root, tmp_path / "root")
     paths = AircraftPaths(root, "c172")
@@ -168,6 +170,7 @@ def test_hand_edit_refused_then_forced_with_a_backup(generated_root, tmp_path, c
     assert main(["--root", str(root), "--quiet", "generate", "c172"]) == 0       # no longer a hand edit
 
 
+@pytest.mark.slow
 def test_a_calibration_value_set_by_hand_is_no_hand_edit(generated_root, tmp_path, capsys):
     """Values are the calibration's to change: generate rewrites them from calibration.json
     (naming the factor) without --force."""
@@ -234,6 +237,7 @@ def _calibrate_dynamic(root: Path, reports: Path) -> None:
                  "--report-dir", str(reports), "--exit-zero"]) == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kill_at", [1, 2, 3])
 def test_calibration_killed_at_each_write_leaves_a_consistent_aircraft(tmp_path, kill_at):
     """`calibrate c172 --stage dynamic` (the committed C172) killed (SIGKILL) at each rename of
@@ -259,6 +263,7 @@ def test_calibration_killed_at_each_write_leaves_a_consistent_aircraft(tmp_path,
         assert sim.new_exec().load_model("c172")
 
 
+@pytest.mark.slow
 def test_hand_edits_survive_calibrate_and_generate(tmp_path, capsys):
     """A comment and a function added by hand and a factor changed by hand: `calibrate` keeps
     the comment and the function and names the factor it overwrites (backup kept); `generate`

@@ -181,6 +181,7 @@ def test_identified_by_ignores_held_rows():
 
 
 # --------------------------------------------------------------------------- recovery
+@pytest.mark.slow
 def test_damping_factors_of_a_truth_aircraft_are_recovered_from_its_time_histories(tmp_path):
     """A copy of the C172 with roll, pitch and yaw damping changed flies doublets and a roll step
     (10 Hz records); stage 2b from the committed model recovers the three factors within 10 %."""

@@ -70,6 +70,7 @@ def test_a_simulator_pickles_as_what_it_flies():
     assert not other.sandbox.exists()
 
 
+@pytest.mark.slow
 def test_process_pool_and_dask_give_the_same_bits_as_this_process():
     serial = _small_fit(SERIAL)
     with ProcessExecutor(2) as pool:

@@ -31,6 +31,7 @@ def _peak_mb(sim, folder: Path) -> tuple[float, object]:
     return peak, res
 
 
+@pytest.mark.slow
 def test_a_200_log_fleet_streams_with_flat_memory(sim, tmp_path):
     small, large = tmp_path / "small", tmp_path / "large"
     synthetic_fleet(REAL, small, 20, seed=1)

@@ -27,6 +27,7 @@ def test_committed_files_equal_a_fresh_generate(generated_root, repo, name):
         assert a.read_bytes() == b.read_bytes(), f"{a} differs from a fresh 'jsbsim-calib generate {name}'"
 
 
+@pytest.mark.slow
 def test_generate_twice_gives_identical_bytes(generated_root):
     before = {p: p.read_bytes() for p in generated_root.rglob("*.xml")}
     generate("c172", generated_root)

@@ -42,6 +42,7 @@ def test_evaluate_cli_on_a_log_writes_summary_segments_plot_and_table(tmp_path):
     assert "| 1 | cruise |" in (tmp_path / "c172" / "log_110812_095915_KCKN.md").read_text()
 
 
+@pytest.mark.slow
 def test_close_loop_accepts_a_log():
     res = run_close_loop(REPO, "c172", LOG)
     s = res.summaries("all")

@@ -6,9 +6,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 def test_quickstart_runs_and_leaves_the_repository_alone(tmp_path):
     before = subprocess.run(["git", "status", "--porcelain", "--", "aircraft", "engine", "reports"], cwd=REPO,
                             capture_output=True, text=True).stdout

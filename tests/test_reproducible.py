@@ -31,6 +31,8 @@ from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import QuirkWarning
 from jsbsim_calib.workflow import aircraft_data, run_dynamic, run_steady, run_trims
 
+pytestmark = pytest.mark.slow          # the main job and whole chains: the full suite only
+
 REPO = Path(__file__).resolve().parents[1]
 PERTURBATION = 1e-8           # relative to the normalized range: a round-off-sized start change
 FACTOR_TOL_SE = 1.0           # one stage (SR20 stage 1): factors within this many standard errors

@@ -176,6 +176,7 @@ def test_switched_on_it_is_a_power_effect_and_the_swirl_needs_right_rudder(c172)
     assert abs(swirl.rudder_deg - no_pf.rudder_deg) > 0.3 and abs(pf.rudder_deg - no_pf.rudder_deg) > 0.3
 
 
+@pytest.mark.slow
 def test_the_slipstream_command_calibrates_a_variant_and_writes_its_report(tmp_path):
     """`jsbsim-calib slipstream sr20 --stage steady --variant theory --max-nfev 5`: stage 1 from
     neutral with the theory switched on (a real fit, shortened); the fitted variant needs stage 2a
@@ -192,3 +193,15 @@ def test_the_slipstream_command_calibrates_a_variant_and_writes_its_report(tmp_p
     # every CPU and executor
     assert theory == pytest.approx(18.7, abs=0.3)
     assert "| K_slip | 1 |" in md and "The product (aircraft/sr20/sr20.xml) holds" in md
+
+
+def test_the_comparison_table_has_a_column_per_variant_and_no_number_for_a_nan():
+    """The slipstream report's console table (fast: no chain flown; the command's own test above
+    flies one), a figure that is not a number shown as '-'."""
+    from jsbsim_calib.factors import FactorSet
+    from jsbsim_calib.report.variants import _cell, format_comparison, table
+    from jsbsim_calib.variants import SLIPSTREAM, VariantResult
+    results = [VariantResult(v, FactorSet(), {}, {}, {}, 0.0) for v in SLIPSTREAM]
+    head, rows = table(results)
+    assert head == ["figure"] + [v.name for v in SLIPSTREAM] and all(len(r) == len(head) for r in rows)
+    assert _cell(float("nan")) == "-" and "model variants" in format_comparison("c172", results)

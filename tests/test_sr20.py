@@ -97,6 +97,7 @@ def test_lighter_aircraft_climbs_better(calibrated):
 TRUTH = {"K_cd0_slope": 1.10, "K_CT_scale": 0.96, "K_CQ_scale": 1.05, "K_HP": 1.04}
 
 
+@pytest.mark.slow
 def test_steady_fit_recovers_known_factors(repo, tmp_path, synthetic_poh):
     sim = Simulator(repo, "sr20", baseline=True)
     climb = load_dataset(repo / "data" / "sr20_poh_climb.csv")

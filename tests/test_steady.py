@@ -93,6 +93,7 @@ def test_baseline_flag_evaluates_the_uncalibrated_model(repo, tmp_path):
 TRUTH = {"K_cd0_slope": 1.12, "K_cdi": 1.08, "K_CT_scale": 0.95, "K_CQ_scale": 1.06, "K_HP": 1.03, "K_FF": 1.07}
 
 
+@pytest.mark.slow
 def test_steady_fit_recovers_known_factors_from_synthetic_poh(repo, tmp_path, synthetic_poh):
     """POH-like targets made by the model with known factors are fitted back from neutral."""
     sim = Simulator(repo, "c172", baseline=True)

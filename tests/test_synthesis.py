@@ -105,6 +105,7 @@ CASES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(CASES))
 def test_an_effect_outside_the_library_is_synthesized_named_and_closes_the_residual(tmp_path, clean, case):
     term, kind, n, seed, metric = CASES[case]
@@ -122,12 +123,14 @@ def test_an_effect_outside_the_library_is_synthesized_named_and_closes_the_resid
 
 
 # --------------------------------------------------------------------------- null cases
+@pytest.mark.slow
 def test_a_clean_truth_adds_nothing(tmp_path, clean):
     res = close_loop(clean, truth_data(tmp_path, n=36, seed=21))
     assert res.added == [] and not any(r.accepted for r in res.synthesized)
     assert "synthesized" in res.to_json() and not res.unexplained()
 
 
+@pytest.mark.slow
 def test_a_library_effect_wins_over_a_synthesized_term(tmp_path, clean):
     """Engine torque roll (L = K Q): the dictionary has look-alikes (Cl ~ Tc); the library,
     tried first, explains it, and nothing is synthesized."""
@@ -137,6 +140,7 @@ def test_a_library_effect_wins_over_a_synthesized_term(tmp_path, clean):
 
 
 # --------------------------------------------------------------------------- the written aircraft, CLI, report
+@pytest.mark.slow
 def test_cli_writes_the_term_into_an_aircraft_that_jsbsims_runner_flies(tmp_path):
     """close-loop through the command line on the flap-roll truth, written in place into a copy
     of the repository's root: JSON and report name the term; JSBSim's runner flies the repository's
@@ -174,6 +178,7 @@ def test_cli_writes_the_term_into_an_aircraft_that_jsbsims_runner_flies(tmp_path
 
 
 # --------------------------------------------------------------------------- real data
+@pytest.mark.slow
 @pytest.mark.parametrize("data", ["c172_flight_test_snapshots.csv", "g1000/log_110812_095915_KCKN.csv"])
 def test_the_loop_on_real_data_runs_and_says_what_it_synthesized(tmp_path, data):
     """Measured with the committed C172: real trims: the library adds nothing; synthesis on

@@ -156,6 +156,7 @@ def test_unreadable_value_is_an_error_naming_line_and_column(tmp_path):
 TRUTH = {"alpha_shift_addl": 0.6, "K_de_offset": 2.0, "K_da_offset": -1.5, "K_PF": 2.0}
 
 
+@pytest.mark.slow
 def test_trim_steps_recover_known_factors_from_synthetic_snapshots(repo, tmp_path):
     real = _load()
     sim = Simulator(repo, "c172")

@@ -95,6 +95,7 @@ def _finite(s: ErrorStat) -> bool:
     return s.n > 0 and math.isfinite(s.rmse) and math.isfinite(s.within_pct)
 
 
+@pytest.mark.slow
 def test_stage1_folds_refit_and_report_finite_numbers():
     v = validate_steady(REPO, "c172", folds=["climb OAT 40 C", "cruise 12,000 ft"], max_nfev=FAST_NFEV,
                         control=False)
@@ -112,6 +113,7 @@ def test_stage1_folds_refit_and_report_finite_numbers():
     assert v.to_json()["folds"][0]["metrics"][0]["held_out"]["n"] == 6
 
 
+@pytest.mark.slow
 def test_stage2a_flap_folds_refit_only_the_steps_that_use_them():
     v = validate_trims(REPO, "c172", folds=["flaps 20", "flaps 30"], max_nfev=FAST_NFEV, control=False)
     for fr in v.folds:
@@ -129,6 +131,7 @@ def test_stage2a_flap_folds_refit_only_the_steps_that_use_them():
                 assert math.isfinite(m.held_out.rmse)
 
 
+@pytest.mark.slow
 def test_validate_cli_writes_the_report_and_its_figure(tmp_path):
     r = subprocess.run([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(REPO), "--quiet", "validate", "c172",
                         "--stage", "trims", "--fold", "turns", "--max-nfev", "5", "--no-physics", "--report-dir",
@@ -157,6 +160,7 @@ def test_a_dynamic_error_that_is_not_a_number_never_passes():
     assert math.isnan(error_stat([Judged("C.58", "roll_rate_deg_s", "deg/s", math.nan, 2.0)]).rmse)
 
 
+@pytest.mark.slow
 def test_stage2b_left_out_roll_step_is_flown_on_a_refit_without_it():
     """C.58 left out: the roll axis refitted on C.60 and the pulses (real fits, a few
     evaluations), then C.58 flown. The two roll steps disagree (pb/2V 0.030 vs 0.041, README):
@@ -176,6 +180,15 @@ def test_stage2b_left_out_roll_step_is_flown_on_a_refit_without_it():
 @pytest.fixture(scope="module")
 def physics():
     return {n: run_physics_checks(REPO, n, stage_data(REPO, n, ("poh_climb", "poh_cruise"))) for n in ("c172", "sr20")}
+
+
+def test_the_physics_checks_are_printed_and_written(physics, tmp_path):
+    """The validation report's physics section (fast: no refit; the command's own test flies folds)."""
+    from jsbsim_calib.report.validation import format_physics, write_validation_report
+    text = format_physics(physics["c172"])
+    assert text.startswith("c172: physics checks") and len(text.splitlines()) == 1 + len(physics["c172"].checks()) + len(physics["c172"].notes)
+    md = write_validation_report("c172", [], physics["c172"], tmp_path, "jsbsim-calib validate c172").read_text()
+    assert "jsbsim-calib validate c172" in md and "## Physics checks" in md
 
 
 @pytest.mark.parametrize("name", ["c172", "sr20"])
