@@ -27,6 +27,19 @@ import time
 import warnings
 from pathlib import Path
 
+
+def _interrupted_loading(signum, frame):
+    print("interrupted; nothing written", file=sys.stderr)
+    raise SystemExit(130)
+
+
+# Ctrl-C while the command loads (seconds on a busy machine): one line, exit 130 (main() then
+# turns it into KeyboardInterrupt); a pool worker that loads this module as its main ignores it
+if __name__ == "__main__" or Path(sys.argv[0]).name == "jsbsim-calib":
+    signal.signal(signal.SIGINT, _interrupted_loading)
+elif __name__ == "__mp_main__":
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
 from .calibration.closeloop import write_aircraft
 from .calibration.steady import steady_factors
 from .errors import CalibError, InputError, Problem
@@ -693,6 +706,8 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     previous = None
     if threading.current_thread() is threading.main_thread():
+        if signal.getsignal(signal.SIGINT) is _interrupted_loading:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
         previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         return _run(args)
