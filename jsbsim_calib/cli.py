@@ -689,8 +689,7 @@ def path_problems(a) -> list[Problem]:
 def _run(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise InputError("command line", Problem("--workers", f"{args.workers}: give at least 1"))
-    problems = path_problems(args)
-    problems += command_problems(args) if not problems else []
+    problems = path_problems(args) + command_problems(args)
     if problems:
         raise InputError("command line", problems)
     with command_guard(args), make_executor(args.executor, args.workers, args.scheduler) as args.pool:
