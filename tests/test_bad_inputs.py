@@ -707,6 +707,29 @@ def test_g1000_loader_under_damage(data, tmp_path, c172_geometry):
         assert np.all(np.isfinite(ds.frame.loc[cruise, "rpm"])) and np.all(np.isfinite(ds.frame.loc[~cruise, "roc_fpm"]))
 
 
+@EXAMPLES
+@given(data=st.data())
+def test_a_spreadsheet_export_reads_as_the_csv(data, tmp_path, c172_geometry):
+    """A POH or snapshot file exported another way (separator, decimal comma, header case, a
+    byte-order mark, UTF-16, CRLF) loads to the same frame as the file itself."""
+    name = data.draw(st.sampled_from(["c172_poh_climb.csv", "c172_poh_cruise.csv", "sr20_poh_climb.csv",
+                                      "c172_flight_test_flap_climb.csv"]))
+    lines = lines_of(name)
+    sep = data.draw(st.sampled_from([",", ";", "\t"]))
+    decimal = data.draw(st.sampled_from([".", ","])) if sep != "," else "."
+    header = data.draw(st.sampled_from([str.lower, str.upper, str.title]))(lines[0])
+    text = sheet([header, *lines[1:]], sep, decimal)
+    if data.draw(st.booleans()):
+        text = text.replace("\n", "\r\n")
+    encoding = data.draw(st.sampled_from(["utf-8", "utf-8-sig", "utf-16", "utf-16-le"]))
+    p = write(tmp_path, name, text.encode(encoding))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        got, want = load_dataset(p, geometry=c172_geometry), load_dataset(DATA / name, geometry=c172_geometry)
+    assert got.kind == want.kind
+    assert got.frame.equals(want.frame)
+
+
 TH_HEADER = "time_s,pressure_alt_ft,ktas,vs_fpm,pitch_deg,roll_deg,q_deg_s,elevator_deg,throttle_norm"
 TH_ROWS = [f"{i / 10:.1f},5500.0,{110 - 0.1 * i:.2f},0.0,{0.5 + 0.05 * i:.3f},0.0,0.5,{1.0 + 0.1 * i:.2f},0.8"
            for i in range(8)]
