@@ -33,8 +33,21 @@ import time
 import warnings
 from pathlib import Path
 
-from . import __version__
-from .calibration.loop import write_aircraft
+
+def _interrupted_loading(signum, frame):
+    print("interrupted; nothing written", file=sys.stderr)
+    raise SystemExit(130)
+
+
+# Ctrl-C while the command loads (seconds on a busy machine): one line, exit 130 (main() then
+# turns it into KeyboardInterrupt); a pool worker that loads this module as its main ignores it
+if __name__ == "__main__" or Path(sys.argv[0]).name == "jsbsim-calib":
+    signal.signal(signal.SIGINT, _interrupted_loading)
+elif __name__ == "__mp_main__":
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+from . import __version__  # noqa: E402  (after the SIGINT handler: imports take seconds)
+from .calibration.loop import write_aircraft  # noqa: E402
 from .calibration.steady import steady_factors
 from .errors import CalibError, InputError, Problem
 from .executor import make_executor
@@ -766,8 +779,7 @@ def path_problems(a) -> list[Problem]:
 def _run(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise InputError("command line", Problem("--workers", f"{args.workers}: give at least 1"))
-    problems = path_problems(args)
-    problems += command_problems(args) if not problems else []
+    problems = path_problems(args) + command_problems(args)
     if problems:
         raise InputError("command line", problems)
     with command_guard(args), make_executor(args.executor, args.workers, args.scheduler) as args.pool:
@@ -783,6 +795,8 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     previous = None
     if threading.current_thread() is threading.main_thread():
+        if signal.getsignal(signal.SIGINT) is _interrupted_loading:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
         previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         return _run(args)

@@ -105,8 +105,8 @@ def duplicate_header_problems(header: list[str]) -> list[Problem]:
     for j, h in enumerate(header):
         k = seen.setdefault(h, j)
         if k != j and h:
-            out.append(Problem(f"line 1, column {j + 1} '{h}'", f"the same name as column {k + 1}: a duplicated column; "
-                                                                 "remove one or rename it"))
+            out.append(Problem(f"line 1, column '{h}'", f"appears more than once (columns {k + 1} and {j + 1}): a "
+                                                        "duplicated column; remove one or rename it"))
     return out
 
 

@@ -138,7 +138,11 @@ def _read_text(source: str | Path | IO[str]) -> tuple[str, str]:
         raw = path.read_bytes()
     except OSError as exc:
         raise DataError(path, [Problem("", f"cannot read file: {exc.strerror or exc}")]) from exc
-    return str(path), decode(path, raw)
+    try:
+        return str(path), decode(path, raw)     # UTF-8, a byte-order mark, UTF-16
+    except DataError as exc:                    # a stray byte: kept readable, as before, and said
+        warnings.warn(f"{path}: {exc.problems[0]}; read with the byte replaced", G1000DataWarning, stacklevel=3)
+        return str(path), raw.decode("utf-8-sig", errors="replace")
 
 
 def _warn_lines(source: str, messages: list[str]) -> None:
