@@ -118,7 +118,8 @@ def _discard(token: str, targets: Sequence[Path]) -> None:
         Path(_tmp_name(t, token)).unlink(missing_ok=True)
 
 
-def _alive(pid: int) -> bool:
+def alive(pid: int) -> bool:
+    """Whether a process of that id runs (one of another user counts as running)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -138,7 +139,7 @@ def _owner(tmp: Path) -> tuple[int, str] | None:
 
 
 def _abandoned(pid: int, token: str) -> bool:
-    return not _alive(pid) if pid != os.getpid() else token not in _ACTIVE
+    return not alive(pid) if pid != os.getpid() else token not in _ACTIVE
 
 
 def recover(journal: Path, targets: Sequence[Path]) -> str | None:

@@ -102,6 +102,7 @@ class RecordedTest:
     time_s: np.ndarray
     channels: dict
     record: dict = field(default_factory=dict)     # every recorded channel (surfaces in JSBSim's signs)
+    weights: dict = field(default_factory=dict)    # channel -> weight of its residuals (default 1)
 
     def residuals(self, tr: Trajectory, channels: Sequence[str]) -> tuple[np.ndarray, list[str]]:
         """(model - recorded) / scale at every recorded time."""
@@ -111,7 +112,7 @@ class RecordedTest:
             if c not in self.channels or c not in model:
                 continue
             d = self.channels[c]
-            r = (model[c] - d) / CHANNEL_SCALES.get(c, 1.0)
+            r = (model[c] - d) * self.weights.get(c, 1.0) / CHANNEL_SCALES.get(c, 1.0)
             out.append(np.where(np.isfinite(r), r, FAIL_RESIDUAL))
             labels += [f"{self.id} {c} t={t:.2f}" for t in self.time_s]
         return (np.concatenate(out) if out else np.zeros(0)), labels

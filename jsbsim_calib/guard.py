@@ -21,6 +21,7 @@ import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
+from .commit import alive
 from .errors import CalibError
 from .jsbsim.product import AircraftPaths, recover_product
 
@@ -30,15 +31,6 @@ LOCK = ".lock"
 class LockedError(CalibError):
     """Another process writes the aircraft folder."""
 
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 def _holder(lock: Path) -> dict | None:
@@ -62,7 +54,7 @@ def aircraft_lock(folder: Path, command: str):
             fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
         except FileExistsError:
             held = _holder(lock)
-            if held and isinstance(held.get("pid"), int) and _alive(held["pid"]) and held["pid"] != os.getpid():
+            if held and isinstance(held.get("pid"), int) and alive(held["pid"]) and held["pid"] != os.getpid():
                 raise LockedError(f"{folder} is being written by another run: pid {held['pid']}, "
                                   f"'{held.get('command', '?')}', started {held.get('started', '?')}; wait for it "
                                   f"to end (or remove {lock} if that process is gone)") from None

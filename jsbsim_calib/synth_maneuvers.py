@@ -52,7 +52,7 @@ except ModuleNotFoundError:      # Python < 3.11
     import tomli as tomllib
 
 from .data.flighttest import load_control_travel, to_jsbsim_sign
-from .data.timehistory import (AXIS_CHANNELS, CHANNELS, MIXTURES, PILOT_AXES, Configuration, SensorError,
+from .data.timehistory import (AXIS_CHANNELS, CHANNELS, MIXTURES, PILOT_AXES, Configuration, SensorError, pilot_windows,
                                TimeHistory, TimeHistoryMeta, load_time_history,
                                trajectory_to_time_history, write_time_history)
 from .errors import InputError, Problem
@@ -445,13 +445,16 @@ def _inputs_of(spec: ManeuverSpec) -> tuple[str, ...]:
     return tuple(c for c in CHANNELS if c in moved)
 
 
-def meta_of(spec: ManeuverSpec, plan: Plan, truth: str, channels: Sequence[str], noise: float) -> TimeHistoryMeta:
+def meta_of(spec: ManeuverSpec, plan: Plan, truth: str, channels: Sequence[str], noise: float,
+            holds: Sequence[Hold] = ()) -> TimeHistoryMeta:
+    """The sidecar of a flown maneuver; ``holds``: the pilot loops as flown (targets resolved
+    from the truth's trim), kept with their windows so that a replay flies them again."""
     c = spec.start
     notes = " ".join(x for x in (spec.notes, f"Synthetic: plan '{plan.name}', truth '{truth}'.") if x)
     return TimeHistoryMeta(spec.id, spec.title, spec.part60, spec.kind, truth,
                            Configuration(c.weight_lb, c.cg_in, c.flaps_deg, c.mixture, c.isa_dev_c),
                            plan.sample_rate_hz, _inputs_of(spec), _sources(truth, channels, plan, noise),
-                           spec.pilot, notes)
+                           pilot_windows(holds) if holds else spec.pilot, notes)
 
 
 # --------------------------------------------------------------------------- flying the plan
@@ -467,7 +470,7 @@ def fly_plan(sim, plan: Plan, *, seed: int = 0, noise: float = 1.0,
         traj = fly(sim, m)
         channels = [c for c in CHANNELS if c in RECORD or c == "time_s"]
         channels += [c for c in ("column_in", "wheel_deg", "pedal_in") if travel]
-        meta = meta_of(spec, plan, sim.name, channels, noise)
+        meta = meta_of(spec, plan, sim.name, channels, noise, m.holds)
         th = trajectory_to_time_history(traj, meta, plan.sample_rate_hz, travel, errors,
                                         np.random.default_rng([seed, 3, k]))
         out.append(th)

@@ -54,7 +54,11 @@ def test_default_plan_covers_level5_and_writes_valid_files(flown):
         assert np.isfinite(th.frame.to_numpy()).all()
         assert th.meta.aircraft == "c172" and set(th.meta.sources) == set(th.channels) - {"time_s"}
     by_kind = {th.meta.kind: th for th in records}
-    assert by_kind["sideslip"].meta.pilot == {"pitch": "altitude", "roll": "bank", "yaw": "sideslip"}
+    # the loops as flown: held at the trim by name, with a target or a window as windows (a replay flies them again)
+    assert by_kind["sideslip"].meta.pilot == {"pitch": "altitude",
+                                               "roll": [{"loop": "bank", "target": 3.0, "start_s": 2.0}],
+                                               "yaw": [{"loop": "sideslip", "target": 5.0, "start_s": 2.0}]}
+    assert by_kind["spiral"].meta.pilot["roll"] == [{"loop": "bank", "target": 30.0, "start_s": 1.0, "end_s": 15.0}]
     assert by_kind["engine_acceleration"].meta.inputs == ("elevator_deg", "aileron_deg", "throttle_norm")
 
 

@@ -265,3 +265,19 @@ def test_noise_is_seeded_and_stays_valid(c172, tmp_path):
     d = a.channel("pitch_deg") - exact.channel("pitch_deg")
     assert 0.02 < np.std(d) < 0.2 and abs(np.mean(d) - 0.05) < 0.03
     assert isinstance(load_time_history(pa), TimeHistory)
+
+
+def test_pilot_windows_round_trip_into_the_replays_holds_and_bad_windows_are_named():
+    """A sidecar keeps the pilot's targets and windows; the replay flies them; a bad window is
+    refused by its key."""
+    from jsbsim_calib.data.timehistory import _holds, pilot_windows
+    from jsbsim_calib.errors import InputError
+    from jsbsim_calib.jsbsim.trajectory import Hold
+    holds = (Hold("altitude"), Hold("bank", 30.0, 1.0, 15.0))
+    doc = pilot_windows(holds)
+    assert doc == {"pitch": "altitude", "roll": [{"loop": "bank", "target": 30.0, "start_s": 1.0, "end_s": 15.0}]}
+    assert _holds(doc, "x") == holds
+    with pytest.raises(InputError, match=r"pilot.roll\[0\].*start_s < end_s"):
+        _holds({"roll": [{"loop": "bank", "start_s": 5.0, "end_s": 2.0}]}, "x")
+    with pytest.raises(InputError, match="not a loop of the roll axis"):
+        _holds({"roll": [{"loop": "pitch"}]}, "x")

@@ -48,10 +48,10 @@ from ..evaluate import KINDS, Evaluation, Summary, evaluate_dataset, summarize, 
 from ..factors import FactorSet, levers
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.xml import Tree
-from .diagnose import ALPHA, Correlate, MetricDiagnosis, diagnose
+from .diagnose import ALPHA, MetricDiagnosis, diagnose
 from .effects import Effect, library
 from .fit import FitResult
-from .loop import (MAX_EFFECTS, NOISE_FLOOR, Candidate, Change,
+from .loop import (MAX_EFFECTS, LoopResult, NOISE_FLOOR, Candidate, Change,
                    LoopRun, Round, Rows, cross_validate, fit_change, run_loop)
 from .points import FAIL_PENALTY
 from .synthesis import Linearization, Selection, Synthesis, dictionary_for, linearize, null_test, select, term_effect
@@ -71,22 +71,8 @@ class BeforeAfter:
         return {"before": summary_dict(self.before), "after": summary_dict(self.after)}
 
 
-@dataclass(frozen=True)
-class Unexplained:
-    """A metric whose residual is still structured after the loop, with the states it follows."""
-
-    metric: str
-    correlates_with: list[str]          # regressors, most significant first
-    reason: str
-    correlations: list[Correlate]
-
-    def as_dict(self) -> dict:
-        return {"metric": self.metric, "correlates_with": list(self.correlates_with), "reason": self.reason,
-                "correlations": [c.as_dict() for c in self.correlations]}
-
-
 @dataclass
-class CloseLoopResult:
+class CloseLoopResult(LoopResult):
     """What the loop found and the aircraft it ends with (as a parsed file, its factors
     including the added effects' own: no live simulator; :meth:`simulator` flies it)."""
 
@@ -116,14 +102,6 @@ class CloseLoopResult:
             pts = [p for p in ev.points if idx is None or p.index in idx]
             out[label] = summarize(pts, ev.metrics)
         return BeforeAfter(**out)
-
-    def unexplained(self) -> list[Unexplained]:
-        return [Unexplained(m, [c.regressor for c in d.correlates], d.reason, list(d.correlates))
-                for m, d in self.diagnosis_after.items() if d.structured]
-
-    def simulator(self) -> Simulator:
-        """A simulator of the aircraft the loop ends with (use it in a ``with`` block)."""
-        return Simulator.with_aircraft(self.root, self.aircraft, self.aircraft_tree, self.factors)
 
     def to_json(self) -> dict:
         s = self.summaries("all").as_dict()

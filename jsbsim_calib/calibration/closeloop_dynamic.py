@@ -63,13 +63,12 @@ from ..factors import FactorSet, step_factors
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.trajectory import fly
 from ..jsbsim.xml import Tree, parse
-from .closeloop import Unexplained
 from .diagnose import ALPHA, Correlate
 from .effects import LIBRARY_DIR, Effect, library
 from .equation_error import Column, Ranked, effect_columns, equation_error, factor_columns, inertia_columns, rank, \
     term_columns
 from .fit import LEGS, FitResult
-from .loop import (MATERIAL, MAX_EFFECTS, NOISE_FLOOR, RULES as LOOP_RULES, Candidate, Change, Round, Rows,
+from .loop import (MATERIAL, MAX_EFFECTS, LoopResult, NOISE_FLOOR, RULES as LOOP_RULES, Candidate, Change, Round, Rows,
                    cross_validate as loop_cross_validate, run_loop)
 from .synthesis import EFFECT_PREFIX, Linearization, Selection, dictionary, select, term_effect
 from .terms import SAME_FORM
@@ -165,6 +164,10 @@ class Response:
         if self.model is None:
             return np.full(len(self.test.time_s), np.nan)
         return self.model[channel] - self.test.channels[channel]
+
+    def weighted_error(self, channel: str) -> np.ndarray:
+        """The error times the test's weight of the channel (:func:`replay_weights`)."""
+        return self.error(channel) * self.test.weights.get(channel, 1.0)
 
 
 def fly_response(sim: Simulator, test: RecordedTest) -> Response:
@@ -340,7 +343,7 @@ def diagnose_channel(channel: str, responses: Sequence[Response]) -> ChannelDiag
     """The diagnosis of one response channel over the tests that recorded it and flew."""
     flown = [x for x in responses if x.model is not None and channel in x.channels]
     scale, axis, unit = CHANNEL_SCALES[channel], CHANNEL_AXIS[channel], CHANNELS[channel].unit
-    errs = [x.error(channel) for x in flown]
+    errs = [x.weighted_error(channel) for x in flown]
     n = int(sum(e.size for e in errs))
     if n < MIN_SAMPLES:
         return ChannelDiagnosis(channel, axis, n, math.nan, scale, math.nan, math.nan, math.nan, math.nan, False,
@@ -508,7 +511,7 @@ def cross_validate(current: Simulator, ch: Change | Effect, factors: FactorSet, 
 
 # --------------------------------------------------------------------------- the result and the loop
 @dataclass
-class CloseLoopDynamicResult:
+class CloseLoopDynamicResult(LoopResult):
     """What the loop found on the time histories and the aircraft it ends with (as a parsed
     file and its factors, the added effects' own included; :meth:`simulator` flies it)."""
 
@@ -531,14 +534,6 @@ class CloseLoopDynamicResult:
     def errors(self, which: str) -> dict[str, dict[str, ChannelError]]:
         """'before' or 'after': axis -> channel -> error over all tests."""
         return error_summary({"before": self.before, "after": self.after}[which])
-
-    def unexplained(self) -> list[Unexplained]:
-        return [Unexplained(c, [x.regressor for x in d.correlates], d.reason, list(d.correlates))
-                for c, d in self.diagnosis_after.items() if d.structured]
-
-    def simulator(self) -> Simulator:
-        """A simulator of the aircraft the loop ends with (use it in a ``with`` block)."""
-        return Simulator.with_aircraft(self.root, self.aircraft, self.aircraft_tree, self.factors)
 
     def to_json(self) -> dict:
         errs = {w: {a: {c: e.as_dict() for c, e in chans.items()} for a, chans in self.errors(w).items()}
@@ -574,6 +569,44 @@ def check_tests(tests: Sequence[RecordedTest]) -> None:
         problems.append(Problem("", "no recorded test given"))
     if problems:
         raise InputError("recorded tests", problems)
+
+
+# --------------------------------------------------------------------------- what the inputs' noise gives
+REPLAY_DRAWS = 2             # replays of every test with its inputs' noise redrawn
+REPLAY_SEED = 20261
+
+
+def input_noise(values: Sequence[float]) -> float:
+    """An input's noise (standard deviation) from its breakpoints' second differences (median
+    absolute value: the corners of a pulse stay out); 0 for fewer than five."""
+    d2 = np.diff(np.asarray(values, float), 2)
+    return 1.4826 * float(np.median(np.abs(d2))) / math.sqrt(6.0) if d2.size >= 3 else 0.0
+
+
+def _noisy(test: RecordedTest, rng: np.random.Generator) -> RecordedTest:
+    """The test with each input's noise drawn again (the same level, a new draw)."""
+    inputs = tuple(replace(i, value=tuple(np.asarray(i.value) + rng.normal(0.0, input_noise(i.value), len(i.value))))
+                   for i in test.maneuver.inputs)
+    return replace(test, maneuver=replace(test.maneuver, inputs=inputs))
+
+
+def replay_weights(sim: Simulator, tests: Sequence[RecordedTest]) -> list[RecordedTest]:
+    """Each test with a weight per channel: 1 / sqrt(1 + (spread / scale)^2), the spread the
+    RMS change of the model's response when the inputs' own noise is drawn again
+    (:data:`REPLAY_DRAWS` replays). A replay feeds the recorded inputs, noise included, to the
+    model: where a mode diverges (a spiral left to itself) that noise alone moves the response
+    by more than any model error, and such a test must not read as structure; a test whose
+    inputs carry no noise keeps weight 1."""
+    rng = np.random.default_rng(REPLAY_SEED)
+    base = fly_all(sim, tests)
+    spread = [{c: 0.0 for c in x.channels} for x in base]
+    for _ in range(REPLAY_DRAWS):
+        for k, x in enumerate(fly_all(sim, [_noisy(t, rng) for t in tests])):
+            for c in x.channels:
+                d = (x.model[c] - base[k].model[c]) if x.model is not None and base[k].model is not None else np.inf
+                spread[k][c] += float(np.mean(np.square(d))) / REPLAY_DRAWS
+    return [replace(t, weights={c: 1.0 / math.sqrt(1.0 + v / CHANNEL_SCALES[c] ** 2) for c, v in s.items()})
+            for t, s in zip(tests, spread)]
 
 
 class TimeHistoryEvidence:
@@ -648,6 +681,7 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
     say = progress or (lambda s: None)
     tests = list(tests)
     check_tests(tests)
+    tests = replay_weights(sim, tests)
     ev = TimeHistoryEvidence(tests, default_effects() if effects is None else dict(effects))
     before = fly_all(sim, tests)
     diag0 = diagnose_responses(before)

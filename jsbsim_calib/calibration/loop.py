@@ -503,6 +503,36 @@ def run_loop(ev: Evidence, sim: Simulator, *, max_effects: int = MAX_EFFECTS, di
     return LoopRun(candidates, added, refits, factors, tree, out, diagnoses, time.perf_counter() - t0)
 
 
+# --------------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class Unexplained:
+    """A metric whose residual is still structured after the loop, with the states it follows."""
+
+    metric: str
+    correlates_with: list[str]          # regressors, most significant first
+    reason: str
+    correlations: list
+
+    def as_dict(self) -> dict:
+        return {"metric": self.metric, "correlates_with": list(self.correlates_with), "reason": self.reason,
+                "correlations": [c.as_dict() for c in self.correlations]}
+
+
+class LoopResult:
+    """What every loop result shares (a dataclass with ``root``, ``aircraft``,
+    ``aircraft_tree``, ``factors`` and ``diagnosis_after``)."""
+
+    def unexplained(self) -> list[Unexplained]:
+        """The metrics (channels) still structured after the loop, with the states they follow:
+        reported, not attributed."""
+        return [Unexplained(m, [c.regressor for c in d.correlates], d.reason, list(d.correlates))
+                for m, d in self.diagnosis_after.items() if d.structured]
+
+    def simulator(self) -> Simulator:
+        """A simulator of the aircraft the loop ends with (use it in a ``with`` block)."""
+        return Simulator.with_aircraft(self.root, self.aircraft, self.aircraft_tree, self.factors)
+
+
 def write_aircraft(result, root: Path, out_name: str) -> Path:
     """Write the aircraft a loop ended with (a result with ``root``, ``aircraft``,
     ``aircraft_tree`` and ``factors``) as ``aircraft/<out_name>/`` of ``root`` (the parent's

@@ -130,7 +130,7 @@ class TimeHistoryMeta:
     sample_rate_hz: float
     inputs: tuple[str, ...]
     sources: Mapping[str, str]
-    pilot: Mapping[str, str] = field(default_factory=dict)
+    pilot: Mapping[str, object] = field(default_factory=dict)   # axis -> loop, or its windows (below)
     notes: str = ""
 
     def to_json(self) -> dict:
@@ -189,17 +189,45 @@ def _parse_configuration(doc, where) -> tuple[Configuration | None, list[Problem
                          float(doc.get("isa_dev_c", 0.0))), []
 
 
+WINDOW_KEYS = ("loop", "target", "start_s", "end_s")
+
+
+def _parse_window(win, axis: str, w: str) -> list[Problem]:
+    """One window of a pilot loop: {"loop", optional absolute "target", "start_s", "end_s"}."""
+    if not isinstance(win, dict):
+        return [Problem(w, "a window must be an object {loop, target, start_s, end_s}")]
+    out = [Problem(w, f"unknown key '{k}'; keys: {', '.join(WINDOW_KEYS)}") for k in win if k not in WINDOW_KEYS]
+    out += _parse_loop(win.get("loop"), axis, w)
+    for k in ("target", "start_s", "end_s"):
+        if k in win and not _is_number(win[k]):
+            out.append(Problem(f"{w}.{k}", f"{win[k]!r} is not a number"))
+    if _is_number(win.get("start_s", 0.0)) and _is_number(win.get("end_s", math.inf)) \
+            and not 0.0 <= win.get("start_s", 0.0) < win.get("end_s", math.inf):
+        out.append(Problem(w, "needs 0 <= start_s < end_s"))
+    return out
+
+
+def _parse_loop(loop, axis: str, w: str) -> list[Problem]:
+    if AXIS_OF_LOOP.get(loop) != axis:
+        loops = [k for k, a in AXIS_OF_LOOP.items() if a == axis]
+        return [Problem(w, f"{loop!r} is not a loop of the {axis} axis; loops: {', '.join(loops)}")]
+    return []
+
+
 def _parse_pilot(doc, where) -> list[Problem]:
+    """{axis: loop} (held at the trimmed value over the whole record) or {axis: [window, ...]}
+    (each window a loop, its absolute target and its times: what the pilot flew)."""
     if not isinstance(doc, dict):
-        return [Problem(where("pilot"), "must be an object {axis: loop}")]
+        return [Problem(where("pilot"), "must be an object {axis: loop or [windows]}")]
     out = []
     for axis, loop in doc.items():
         w = where(f"pilot.{axis}")
         if axis not in PILOT_AXES:
             out.append(Problem(w, f"unknown axis; axes: {', '.join(PILOT_AXES)}"))
-        elif AXIS_OF_LOOP.get(loop) != axis:
-            loops = [k for k, a in AXIS_OF_LOOP.items() if a == axis]
-            out.append(Problem(w, f"{loop!r} is not a loop of the {axis} axis; loops: {', '.join(loops)}"))
+        elif isinstance(loop, list):
+            out += [p for i, win in enumerate(loop) for p in _parse_window(win, axis, f"{w}[{i}]")]
+        else:
+            out += _parse_loop(loop, axis, w)
     return out
 
 
@@ -570,11 +598,34 @@ def _input_series(th: TimeHistory, name: str, travel: Mapping[str, ControlAxis] 
     return name, x
 
 
-def _holds(pilot: Mapping[str, str] | None, source) -> tuple[Hold, ...]:
+def _holds(pilot: Mapping[str, object] | None, source) -> tuple[Hold, ...]:
     problems = _parse_pilot(dict(pilot or {}), lambda k: k)
     if problems:
         raise InputError(source, problems)
-    return tuple(Hold(loop) for axis, loop in (pilot or {}).items())
+    out = []
+    for axis, loop in (pilot or {}).items():
+        if isinstance(loop, list):
+            out += [Hold(w["loop"], w.get("target"), float(w.get("start_s", 0.0)), float(w.get("end_s", math.inf)))
+                    for w in loop]
+        else:
+            out.append(Hold(loop))
+    return tuple(out)
+
+
+def pilot_windows(holds: Sequence[Hold]) -> dict[str, object]:
+    """Pilot loops as the sidecar keeps them: a loop held at the trim over the whole record as
+    its name, any other as its windows (absolute targets: what the pilot flew)."""
+    out: dict[str, object] = {}
+    for h in holds:
+        axis = AXIS_OF_LOOP[h.loop]
+        if h.target is None and h.start_s == 0.0 and not math.isfinite(h.end_s) and axis not in out:
+            out[axis] = h.loop
+            continue
+        win = {"loop": h.loop, **({"target": round(float(h.target), 6)} if h.target is not None else {}),
+               "start_s": float(h.start_s), **({"end_s": float(h.end_s)} if math.isfinite(h.end_s) else {})}
+        prev = out.get(axis)
+        out[axis] = (prev if isinstance(prev, list) else ([{"loop": prev}] if prev else [])) + [win]
+    return out
 
 
 def maneuver_from_time_history(th: TimeHistory, geometry=None, pilot: Mapping[str, str] | None = None, *,
@@ -583,9 +634,9 @@ def maneuver_from_time_history(th: TimeHistory, geometry=None, pilot: Mapping[st
     channel as an open-loop change from its first sample at the sample times (straight
     lines between samples; cockpit controls through the control-travel table: ``travel``,
     else the table of ``geometry``, with the table's linear neutrals). ``pilot`` {axis: loop}
-    adds pilot loops holding the trimmed value on those axes, mixed with the recorded input
-    of the axis (the recorded input is the feed-forward, the loop corrects the model's
-    departure)."""
+    adds pilot loops holding the trimmed value on those axes, {axis: [windows]} the loops
+    with the targets and times the record keeps, mixed with the recorded input of the axis
+    (the recorded input is the feed-forward, the loop corrects the model's departure)."""
     if travel is None and geometry is not None and getattr(geometry, "control_travel_file", None):
         travel = load_control_travel(geometry.control_travel_file)
     t = th.time_s - th.time_s[0]
