@@ -384,9 +384,27 @@ def _start(m: Maneuver, data: Mapping[str, np.ndarray]) -> Maneuver:
     return replace(m, start=replace(m.start, mode="full_throttle", throttle=float(round(thr[0]))))
 
 
-def _holds(loops: Mapping[str, str], t: np.ndarray, data: Mapping[str, np.ndarray]) -> tuple[Hold, ...]:
+def _windows(windows: list) -> list[Hold]:
+    """Loops the record keeps with their targets and windows: flown as the pilot flew them."""
+    return [Hold(w["loop"], w.get("target"), float(w.get("start_s", 0.0)), float(w.get("end_s", math.inf)))
+            for w in windows]
+
+
+def _held_to_the_end(loop) -> str | None:
+    """The loop an axis is held by at the record's end (a name, or the last window without an
+    end), else None."""
+    if isinstance(loop, list):
+        last = loop[-1] if loop else {}
+        return last.get("loop") if "end_s" not in last and "target" in last else None
+    return loop
+
+
+def _holds(loops: Mapping[str, object], t: np.ndarray, data: Mapping[str, np.ndarray]) -> tuple[Hold, ...]:
     out = []
     for axis, loop in loops.items():
+        if isinstance(loop, list):
+            out += _windows(loop)
+            continue
         ch = LOOP_CHANNEL[loop]
         target = None if loop in TRIMMED_TARGET or ch not in data else end_mean(t, data[ch], STEADY_S)
         out.append(Hold(loop, target if target is None or math.isfinite(target) else None))
@@ -415,7 +433,8 @@ def _fly(sim, th: TimeHistory, test, pilot, t, data) -> tuple[Maneuver | None, T
 def _held(verdicts: list[MetricVerdict], loops: Mapping[str, str]) -> list[MetricVerdict]:
     """Metrics on a channel the model's pilot held at the flight test's value: n/a (matched by
     construction)."""
-    held = {LOOP_CHANNEL[lp] for lp in loops.values() if lp not in TRIMMED_TARGET}
+    ends = [_held_to_the_end(lp) for lp in loops.values()]
+    held = {LOOP_CHANNEL[lp] for lp in ends if lp is not None and lp not in TRIMMED_TARGET}
     return [replace(v, verdict=NA, reason=f"held by the model's test pilot at the flight test's value "
                                           f"({METRIC_CHANNEL[v.name]}): matched by construction")
             if METRIC_CHANNEL.get(v.name) in held and v.verdict != NA else v for v in verdicts]
