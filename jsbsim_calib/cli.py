@@ -5,8 +5,8 @@ reports, print).
     jsbsim-calib calibrate AIRCRAFT [--stage steady|trims|dynamic|all] [--no-write] [--start current] [--skip STEP]
                                     [--json OUT] [--exit-zero]
     jsbsim-calib evaluate AIRCRAFT --data FILE|DIR [--baseline] [--json OUT] [--report-dir DIR]
-    jsbsim-calib synth --truth AIRCRAFT_DIR --out FILE.csv [--seed N] [--points N] [--noise X]
-    jsbsim-calib synth --truth AIRCRAFT_DIR --plan PLAN --out DIR [--seed N] [--noise X]
+    jsbsim-calib synth --truth AIRCRAFT|DIR --out FILE.csv [--seed N] [--points N] [--noise X]
+    jsbsim-calib synth --truth AIRCRAFT|DIR --plan PLAN --out DIR [--seed N] [--noise X]
     jsbsim-calib close-loop AIRCRAFT --data FILE [--json OUT] [--skip STEP] [--out NAME]
     jsbsim-calib close-loop AIRCRAFT --flight-test DIR_OR_FILE... [--json OUT] [--out NAME]
     jsbsim-calib check AIRCRAFT [--json OUT]
@@ -276,13 +276,24 @@ def cmd_evaluate(a) -> int:
 MAX_POINTS = 10000          # synth --points
 
 
+def truth_folder(a) -> Path | None:
+    """synth --truth: an aircraft named as every command names one (a plain name: the folder
+    aircraft/NAME under --root), or an aircraft folder anywhere (a path; also a plain name that
+    is a folder here and no aircraft of --root). None when it is neither."""
+    named = Path(a.root) / "aircraft" / a.truth
+    plain = Path(a.truth).name == a.truth and a.truth not in (".", "..")
+    if plain and (named / f"{a.truth}.xml").is_file():
+        return named
+    return Path(a.truth) if Path(a.truth).is_dir() else None
+
+
 def cmd_synth(a) -> int:
     check_settings(a.seed, a.noise)
     if a.plan:
         return _synth_plan(a)
     if not 1 <= a.points <= MAX_POINTS:
         raise InputError("synth", Problem("--points", f"{a.points}: give a number of trims in [1, {MAX_POINTS}]"))
-    with Simulator.from_dir(Path(a.truth), Path(a.root)) as truth:
+    with Simulator.from_dir(truth_folder(a), Path(a.root)) as truth:
         rows, skipped = synthesize(truth, n=a.points, seed=a.seed, noise=a.noise, progress=_progress(a))
     if not rows:
         raise CalibError(f"synth: none of the {a.points} points trimmed on {Path(a.truth).name}; nothing written "
@@ -296,7 +307,7 @@ def cmd_synth(a) -> int:
 
 def _synth_plan(a) -> int:
     plan = load_plan(a.plan)
-    with Simulator.from_dir(Path(a.truth), Path(a.root)) as truth:
+    with Simulator.from_dir(truth_folder(a), Path(a.root)) as truth:
         files = synthesize_maneuvers(truth, plan, Path(a.out), seed=a.seed, noise=a.noise,
                                      progress=_progress(a))
     for f in files:
@@ -618,7 +629,9 @@ def _analysis_parsers(sub) -> None:
 
     y = sub.add_parser("synth", help="synthetic flight-test snapshots (or, with --plan, time histories) flown by a "
                                      "truth aircraft folder")
-    y.add_argument("--truth", required=True, help="aircraft folder (its XML flies as it stands)")
+    y.add_argument("--truth", required=True, metavar="AIRCRAFT",
+                   help="the truth aircraft, flown as its XML stands: an aircraft name (folder aircraft/AIRCRAFT under "
+                        "--root), or a path to an aircraft folder anywhere")
     y.add_argument("--out", required=True, help="snapshot CSV to write; with --plan: the directory of the time histories")
     y.add_argument("--plan", help="fly a maneuver plan (TOML file, or 'level5' for the packaged Level 5 plan) and "
                                   "write one CSV + JSON per maneuver (format 1)")
@@ -793,8 +806,9 @@ def path_problems(a) -> list[Problem]:
         out += _input_file("--data", a.data)
     if a.command == "synth":
         out += _output_folder("--out", a.out) if a.plan else _output_file("--out", a.out)
-        if not Path(a.truth).is_dir():
-            out.append(Problem("--truth", f"{a.truth}: not an aircraft folder"))
+        if truth_folder(a) is None:
+            out.append(Problem("--truth", f"{a.truth}: neither an aircraft of --root ({Path(a.root) / 'aircraft'}) "
+                                          "nor an aircraft folder"))
     if a.command in ("close-loop", "part60"):
         out += [Problem("--flight-test", f"{f}: no such file or folder") for f in (a.flight_test or ())
                 if not Path(f).exists()]
