@@ -93,10 +93,11 @@ def _write_json(path, obj) -> None:
 
 
 def _progress(a, plan: Sequence[PlanStep] = ()) -> Progress:
-    """The command's progress display (report.progress): a status line on a terminal (not with
-    --quiet), every line with --verbose, and every line to --log-file; closed by _run."""
+    """The command's progress display (report.progress): a status line on stderr when stdout and
+    stderr are a terminal (not with --quiet), every line with --verbose, and every line to
+    --log-file; closed by _run."""
     console = getattr(a, "console", sys.stderr)
-    p = Progress(plan, live=not a.quiet and console.isatty(),
+    p = Progress(plan, live=not a.quiet and console.isatty() and sys.stdout.isatty(),
                  verbose=a.verbose and not a.quiet, log=getattr(a, "log", None), stream=console)
     a.displays = getattr(a, "displays", []) + [p]
     return p
