@@ -57,6 +57,13 @@ def test_without_a_record_the_counter_counts_steps():
         assert (p.bar.n, p.bar.total) == (1, 2)
 
 
+def test_a_command_without_a_plan_shows_the_time_and_its_activity():
+    term = Terminal()
+    with Progress((), live=True, stream=term) as p:
+        p("flying 10 dynamic tests")
+    assert "elapsed, flying 10 dynamic tests" in term.getvalue() and "%" not in term.getvalue()
+
+
 def test_a_pipe_gets_nothing_verbose_every_line_and_the_log_everything():
     pipe, log = io.StringIO(), io.StringIO()
     lines = _fit_lines("steady", 3, 10)

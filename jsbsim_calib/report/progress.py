@@ -16,6 +16,7 @@ them.
 """
 from __future__ import annotations
 
+import shutil
 import sys
 import time
 from dataclasses import dataclass
@@ -24,7 +25,9 @@ from typing import Sequence, TextIO
 from tqdm import tqdm
 
 BAR_FORMAT = "{desc} {percentage:3.0f}% |{bar:16}| {elapsed} elapsed, ~{remaining} left{postfix}"
+NO_PLAN_FORMAT = "{elapsed} elapsed{postfix}"          # a command without a plan: time and activity
 ACTIVITY_CHARS = 60          # of the latest progress line, on the status line
+DEFAULT_COLUMNS = 110        # the status line's width on a terminal that reports none
 
 
 @dataclass(frozen=True)
@@ -54,8 +57,11 @@ class Progress:
         by_work = bool(self.plan) and all(s.expected for s in self.plan)
         self.by_work = by_work
         total = sum(s.expected for s in self.plan) if by_work else (len(self.plan) or None)
-        self.bar = tqdm(total=total, file=self.stream, bar_format=BAR_FORMAT, smoothing=0, leave=False,
-                        dynamic_ncols=True, disable=not live, desc=self._desc()) if live else None
+        sized = shutil.get_terminal_size((0, 0)).columns > 0     # a terminal that reports no width: a fixed one
+        self.bar = tqdm(total=total, file=self.stream, bar_format=BAR_FORMAT if self.plan else NO_PLAN_FORMAT,
+                        smoothing=0, leave=False, dynamic_ncols=sized, ncols=None if sized else DEFAULT_COLUMNS,
+                        nrows=None if sized else 24,
+                        desc=self._desc()) if live else None
 
     def _desc(self) -> str:
         if not self.plan:
@@ -103,7 +109,7 @@ class Progress:
             n = self.done + (self.plan[self.index].expected if self.by_work else 1)
         self.bar.n = n
         text = msg.split(": ", 1)[1] if ": " in msg else msg
-        self.bar.set_postfix_str(f"  {text[:ACTIVITY_CHARS]}", refresh=False)
+        self.bar.set_postfix_str(text[:ACTIVITY_CHARS], refresh=False)
         self.bar.refresh()
 
     def _finish_step(self) -> None:
