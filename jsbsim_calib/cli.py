@@ -98,7 +98,7 @@ def _progress(a, plan: Sequence[PlanStep] = ()) -> Progress:
     --log-file; closed by _run."""
     console = getattr(a, "console", sys.stderr)
     p = Progress(plan, live=not a.quiet and console.isatty() and sys.stdout.isatty(),
-                 verbose=a.verbose and not a.quiet, log=getattr(a, "log", None), stream=console)
+                 verbose=a.verbose and not a.quiet, log=getattr(a, "log", None), stream=console, hold_stdout=True)
     a.displays = getattr(a, "displays", []) + [p]
     return p
 
@@ -835,7 +835,7 @@ def _run(args) -> int:
         finished = True
         return code
     finally:
-        for display in getattr(args, "displays", ()):
+        for display in reversed(getattr(args, "displays", ())):      # each restores the streams it held
             display.close(finished)
 
 

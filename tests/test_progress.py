@@ -5,6 +5,7 @@ starts when it runs alone (the same command, the same product), and its plan."""
 from __future__ import annotations
 
 import io
+import sys
 from pathlib import Path
 
 from jsbsim_calib.calibration.fit import WorkLine
@@ -62,6 +63,20 @@ def test_a_command_without_a_plan_shows_the_time_and_its_activity():
     with Progress((), live=True, stream=term) as p:
         p("flying 10 dynamic tests")
     assert "elapsed, flying 10 dynamic tests" in term.getvalue() and "%" not in term.getvalue()
+
+
+def test_what_the_command_prints_goes_above_the_status_line(monkeypatch):
+    term = Terminal()
+    monkeypatch.setattr(sys, "stdout", term)
+    monkeypatch.setattr(sys, "stderr", term)
+    with Progress([PlanStep("steady")], live=True, stream=term, hold_stdout=True) as p:
+        p("steady: iteration 1")
+        print("[[Fit: steady]]")
+        print("a line", end="")
+        print(" continued")
+    assert sys.stdout is term and sys.stderr is term
+    out = term.getvalue()
+    assert "\r[[Fit: steady]]\n" in out and "\ra line continued\n" in out          # on a cleared line each
 
 
 def test_a_pipe_gets_nothing_verbose_every_line_and_the_log_everything():

@@ -42,10 +42,12 @@ class PlanStep:
 
 class Progress:
     """The ``progress`` callable a command hands the library (module doc). Use it in a ``with``
-    block (or call :meth:`close`): the status line is removed at the end."""
+    block (or call :meth:`close`): the status line is removed at the end. ``hold_stdout``: while
+    the status line shows, what the command prints (stdout and stderr: the same terminal) is
+    written above it, line by line, instead of running into it."""
 
     def __init__(self, plan: Sequence[PlanStep] = (), *, live: bool, verbose: bool = False,
-                 log: TextIO | None = None, stream: TextIO | None = None):
+                 log: TextIO | None = None, stream: TextIO | None = None, hold_stdout: bool = False):
         self.plan = list(plan)
         self.stream = stream if stream is not None else sys.stderr
         self.verbose, self.log = verbose, log
@@ -62,6 +64,10 @@ class Progress:
                         smoothing=0, leave=False, dynamic_ncols=sized, ncols=None if sized else DEFAULT_COLUMNS,
                         nrows=None if sized else 24,
                         desc=self._desc()) if live else None
+        self._held = None
+        if self.bar is not None and hold_stdout:      # what the command prints goes above the status line
+            self._held = (sys.stdout, sys.stderr)
+            sys.stdout, sys.stderr = (LinesAboveTheBar(f, self.stream) for f in self._held)
 
     def _desc(self) -> str:
         if not self.plan:
@@ -119,6 +125,10 @@ class Progress:
 
     def close(self, finished: bool = True) -> None:
         """Remove the status line (``finished``: after a line for the last step)."""
+        if self._held is not None:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            (sys.stdout, sys.stderr), self._held = self._held, None
         if self.bar is not None:
             if finished:
                 self._finish_step()
@@ -130,6 +140,36 @@ class Progress:
 
     def __exit__(self, kind, value, tb) -> None:
         self.close(finished=kind is None)
+
+
+class LinesAboveTheBar:
+    """stdout while a status line shows on the same terminal: each complete line is written with
+    the status line cleared and then redrawn (tqdm.external_write_mode); a partial line waits for
+    its end (or a flush)."""
+
+    def __init__(self, stream: TextIO, bar_stream: TextIO):
+        self.stream, self.bar_stream, self.pending = stream, bar_stream, ""
+
+    def write(self, text: str) -> int:
+        self.pending += text
+        if "\n" in self.pending:
+            lines, self.pending = self.pending.rsplit("\n", 1)
+            self._emit(lines + "\n")
+        return len(text)
+
+    def _emit(self, text: str) -> None:
+        with tqdm.external_write_mode(file=self.bar_stream):
+            self.stream.write(text)
+            self.stream.flush()
+
+    def flush(self) -> None:
+        if self.pending:
+            self._emit(self.pending)
+            self.pending = ""
+        self.stream.flush()
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
 
 
 class Tee:
