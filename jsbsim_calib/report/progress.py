@@ -54,7 +54,7 @@ class Progress:
         self.t0 = time.perf_counter()
         self.index = -1                      # the plan step running or last run (-1: none yet)
         self.running = False
-        self.step_t0 = self.t0
+        self.step_t0 = self.step_last = self.t0
         self.done = 0                        # work of the finished steps (expected units)
         by_work = bool(self.plan) and all(s.expected for s in self.plan)
         self.by_work = by_work
@@ -101,10 +101,12 @@ class Progress:
     def _show(self, msg: str) -> None:
         task = getattr(msg, "task", None) or msg.split(":", 1)[0]
         if self.running and task != self.plan[self.index].name:
-            self._finish_step()                  # another task's line: the step is done
+            self._finish_step(time.perf_counter())          # another task's line: the step is done
         i = self._step_of(task)
         if i is not None and not self.running:
             self.index, self.step_t0, self.running = i, time.perf_counter(), True
+        if self.running:
+            self.step_last = time.perf_counter()
             self.done = sum(s.expected for s in self.plan[:i]) if self.by_work else i
             self.bar.set_description_str(self._desc(), refresh=False)
         n = self.done
@@ -118,10 +120,12 @@ class Progress:
         self.bar.set_postfix_str(text[:ACTIVITY_CHARS], refresh=False)
         self.bar.refresh()
 
-    def _finish_step(self) -> None:
+    def _finish_step(self, at: float | None = None) -> None:
+        """A line for the step running: it ended ``at`` (None: at its last progress line)."""
         if self.running:
             self.running = False
-            self.bar.write(f"{self._desc()}: done in {time.perf_counter() - self.step_t0:.0f} s", file=self.stream)
+            end = self.step_last if at is None else at
+            self.bar.write(f"{self._desc()}: done in {end - self.step_t0:.0f} s", file=self.stream)
 
     def close(self, finished: bool = True) -> None:
         """Remove the status line (``finished``: after a line for the last step)."""
