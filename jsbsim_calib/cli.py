@@ -18,8 +18,8 @@ reports, print).
     jsbsim-calib airfoil NAME
     jsbsim-calib part60 AIRCRAFT --flight-test DIR_OR_FILE... [--json OUT] [--exit-zero]
 
-The global options (--root, --quiet, --executor, --workers, --scheduler) go before or after the
-command. Exit codes: 0 done; 1 regress: something moved; 2 an error (bad input, nothing written
+The global options (--root, --quiet, --verbose, --log-file, --executor, --workers, --scheduler) go
+before or after the command. Exit codes: 0 done; 1 regress: something moved; 2 an error (bad input, nothing written
 half); 3 calibrate / part60: done, but a target was missed (--exit-zero: 0).
 """
 from __future__ import annotations
