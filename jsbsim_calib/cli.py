@@ -5,8 +5,8 @@ reports, print).
     jsbsim-calib calibrate AIRCRAFT [--stage steady|trims|dynamic|all] [--no-write] [--start current] [--skip STEP]
                                     [--json OUT] [--exit-zero]
     jsbsim-calib evaluate AIRCRAFT --data FILE|DIR [--baseline] [--json OUT] [--report-dir DIR]
-    jsbsim-calib synth --truth AIRCRAFT_DIR --out FILE.csv [--seed N] [--points N] [--noise X]
-    jsbsim-calib synth --truth AIRCRAFT_DIR --plan PLAN --out DIR [--seed N] [--noise X]
+    jsbsim-calib synth --truth AIRCRAFT|DIR --out FILE.csv [--seed N] [--points N] [--noise X]
+    jsbsim-calib synth --truth AIRCRAFT|DIR --plan PLAN --out DIR [--seed N] [--noise X]
     jsbsim-calib close-loop AIRCRAFT --data FILE [--json OUT] [--skip STEP] [--out NAME]
     jsbsim-calib close-loop AIRCRAFT --flight-test DIR_OR_FILE... [--json OUT] [--out NAME]
     jsbsim-calib check AIRCRAFT [--json OUT]
@@ -18,13 +18,14 @@ reports, print).
     jsbsim-calib airfoil NAME
     jsbsim-calib part60 AIRCRAFT --flight-test DIR_OR_FILE... [--json OUT] [--exit-zero]
 
-The global options (--root, --quiet, --executor, --workers, --scheduler) go before or after the
-command. Exit codes: 0 done; 1 regress: something moved; 2 an error (bad input, nothing written
+The global options (--root, --quiet, --verbose, --log-file, --executor, --workers, --scheduler) go
+before or after the command. Exit codes: 0 done; 1 regress: something moved; 2 an error (bad input, nothing written
 half); 3 calibrate / part60: done, but a target was missed (--exit-zero: 0).
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import signal
 import sys
@@ -32,6 +33,7 @@ import threading
 import time
 import warnings
 from pathlib import Path
+from typing import Sequence
 
 
 def _interrupted_loading(signum, frame):
@@ -49,12 +51,14 @@ elif __name__ == "__mp_main__":
 from . import __version__  # noqa: E402  (after the SIGINT handler: imports take seconds)
 from .calibration.loop import write_aircraft  # noqa: E402
 from .calibration.steady import steady_factors
+from .commit import new_run
 from .errors import CalibError, InputError, Problem
 from .executor import make_executor
 from .fleet import evaluate_fleet, format_fleet, log_files
 from .evaluate import evaluate_dataset
 from .generate import generate
 from .guard import command_guard, interrupted_message
+from .jsbsim.aircraft import read_factors
 from .jsbsim.probes import report
 from .jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration, write_calibrated
 from .jsbsim.simulator import Simulator
@@ -62,12 +66,14 @@ from .physics.airfoil import regenerate
 from .preflight import command_problems
 from .report.markdown import (write_close_loop_report, write_dynamic_report, write_evaluation_report, write_log_report,
                               write_steady_report, write_trims_report)
+from .report.progress import PlanStep, Progress, Tee
 from .report.text import evaluation_table, format_stability, format_summary
 from .report.verdicts import format_verdicts, verdicts
 from .synth import synthesize, write_csv
 from .synth_maneuvers import check_settings, load_plan, synthesize_maneuvers
 from .variants import SLIPSTREAM, compare_variants
-from .workflow import load_data_for, run_close_loop, run_dynamic, run_steady, run_trims
+from .workflow import (STAGE_DATA, STAGE_NAMES, load_data_for, run_close_loop, run_dynamic, run_steady, run_trims,
+                       stage_plan, stage_start)
 
 
 EXIT_TARGETS_MISSED = 3        # calibrate, part60: the run is done, a target was missed (--exit-zero: 0)
@@ -86,19 +92,19 @@ def _write_json(path, obj) -> None:
     print(f"json: {path}")
 
 
-def _progress(quiet: bool):
-    if quiet:
-        return None
-    t0 = time.perf_counter()
-
-    def say(msg: str) -> None:
-        print(f"[{time.perf_counter() - t0:7.1f} s] {msg}", file=sys.stderr, flush=True)
-
-    return say
+def _progress(a, plan: Sequence[PlanStep] = ()) -> Progress:
+    """The command's progress display (report.progress): a status line on stderr when stdout and
+    stderr are a terminal (not with --quiet), every line with --verbose, and every line to
+    --log-file; closed by _run."""
+    console = getattr(a, "console", sys.stderr)
+    p = Progress(plan, live=not a.quiet and console.isatty() and sys.stdout.isatty(),
+                 verbose=a.verbose and not a.quiet, log=getattr(a, "log", None), stream=console, hold_stdout=True)
+    a.displays = getattr(a, "displays", []) + [p]
+    return p
 
 
 def cmd_generate(a) -> int:
-    g = generate(a.aircraft, Path(a.root), baseline=a.baseline, progress=_progress(a.quiet), force=a.force)
+    g = generate(a.aircraft, Path(a.root), baseline=a.baseline, progress=_progress(a), force=a.force)
     for p in g.files:
         print(p)
     if g.dropped:
@@ -110,8 +116,7 @@ def cmd_generate(a) -> int:
     return 0
 
 
-def _calibrate_steady(a, root: Path, say):
-    start = read_calibration(AircraftPaths(root, a.aircraft)) if a.start == "current" else None
+def _calibrate_steady(a, root: Path, say, start, run: str):
     res = run_steady(root, a.aircraft, start=start, progress=say, executor=a.pool)
     print(res.fit.report())
     print(res.fuel_flow.report())
@@ -125,14 +130,13 @@ def _calibrate_steady(a, root: Path, say):
             print(format_summary(res.thesis[kind]))
     print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims")
     if not a.no_write:
-        print(write_calibrated(root, a.aircraft, res.factors, "steady", res.summary()).report())
+        print(write_calibrated(root, a.aircraft, res.factors, "steady", res.summary(), run=run).report())
     print(f"report: {write_steady_report(res, Path(a.report_dir) / a.aircraft)}")
     return res.factors, {k: e.summary() for k, e in res.calibrated.items()}
 
 
-def _calibrate_trims(a, root: Path, say, start=None):
-    res = run_trims(root, a.aircraft, skip=tuple(a.skip or ()), progress=say,
-                    start=None if start is None else steady_factors(start), executor=a.pool)
+def _calibrate_trims(a, root: Path, say, start, run: str):
+    res = run_trims(root, a.aircraft, skip=tuple(a.skip or ()), progress=say, start=start, executor=a.pool)
     for r in res.steps:
         print(r.report())
     last = list(res.evaluations)[-1]
@@ -147,13 +151,13 @@ def _calibrate_trims(a, root: Path, say, start=None):
         print(format_summary(res.poh_after[kind].summary()))
     print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims")
     if not a.no_write:
-        print(write_calibrated(root, a.aircraft, res.factors, "trims", res.summary()).report())
+        print(write_calibrated(root, a.aircraft, res.factors, "trims", res.summary(), run=run).report())
     print(f"report: {write_trims_report(res, Path(a.report_dir) / a.aircraft)}")
     return res.factors, {**{k: e.summary() for k, e in res.poh_after.items()},
                          **{k: e.summary() for k, e in res.evaluations[last].items()}}
 
 
-def _calibrate_dynamic(a, root: Path, say, start=None):
+def _calibrate_dynamic(a, root: Path, say, start, run: str):
     res = run_dynamic(root, a.aircraft, start=start, progress=say, executor=a.pool)
     for r in res.steps:
         print(r.report())
@@ -168,37 +172,57 @@ def _calibrate_dynamic(a, root: Path, say, start=None):
     print(f"\nwall time {res.wall_time_s:.1f} s, {res.trims} trims, "
           f"{res.dynamic_after.frames} frames per dynamic evaluation")
     if not a.no_write:
-        print(write_calibrated(root, a.aircraft, res.factors, "dynamic", res.summary()).report())
+        print(write_calibrated(root, a.aircraft, res.factors, "dynamic", res.summary(), run=run).report())
     print(f"report: {write_dynamic_report(res, Path(a.report_dir) / a.aircraft)}")
     return res.factors, res.summaries()
 
 
+CALIBRATE_STAGES = {"steady": ("steady",), "trims": ("trims",), "dynamic": ("dynamic",),
+                    "all": ("steady", "trims", "dynamic")}
+FINAL_MODEL = {"steady": "stage 1 (POH climb and cruise)", "trims": "stage 2a (flight-test trims, after stage 1)",
+               "dynamic": "stage 2b (dynamic tests, after stages 1 and 2a)"}
+STAGE_RUNS = {"steady": _calibrate_steady, "trims": _calibrate_trims, "dynamic": _calibrate_dynamic}
+
+
+def _first_start(a, root: Path, stage: str):
+    """Where the command's first stage starts (printed): the stated, reproducible point
+    (workflow.recorded_start; stage 1: neutral), or (--start current) the current calibration
+    (stage 1: calibration.json; stages 2a and 2b: the aircraft file's values, stage 2a with the
+    later stages' factors neutral)."""
+    if a.start == "current":
+        print(f"start: {STAGE_NAMES[stage]} starts from the current calibration (--start current: a rerun starts "
+              "from this run's result)")
+        paths = AircraftPaths(root, a.aircraft)
+        if stage == "steady":
+            return read_calibration(paths)
+        declared = read_factors(paths.aircraft_xml)
+        return steady_factors(declared) if stage == "trims" else declared
+    start, text = stage_start(root, a.aircraft, stage)
+    print(f"start: {text}")
+    return None if stage == "steady" else start
+
+
 def cmd_calibrate(a) -> int:
     root = Path(a.root)
-    say = _progress(a.quiet)
+    plan = stage_plan(root, a.aircraft, CALIBRATE_STAGES[a.stage])
+    say = _progress(a, [PlanStep(fit, f"{STAGE_NAMES[stage]} {fit}", trims) for stage, fit, trims in plan])
+    run = new_run()                      # one backup per run: the product as it stood before it
     factors, summaries, final = None, {}, ""
-    if a.stage in ("steady", "all"):
-        factors, summaries = _calibrate_steady(a, root, say)
-        final = "stage 1 (POH climb and cruise)"
-    if a.stage in ("trims", "all"):
-        if "flight_test" not in load_aircraft_geometry(root, a.aircraft).data_files:
-            if a.stage == "trims":
-                raise CalibError(f"aircraft/{a.aircraft}/geometry.toml names no flight_test data ([data] table)")
-            print(f"\n{a.aircraft}: no flight-test data, stage 2a skipped")
+    for stage in CALIBRATE_STAGES[a.stage]:
+        if stage not in {s for s, _, _ in plan}:
+            if a.stage == stage:
+                raise CalibError(f"aircraft/{a.aircraft}/geometry.toml names no {STAGE_DATA[stage]} data ([data] "
+                                 "table)" + (": no dynamic tests" if stage == "dynamic" else ""))
+            print(f"\n{a.aircraft}: no {'dynamic ' if stage == 'dynamic' else ''}flight-test data, "
+                  f"{STAGE_NAMES[stage]} skipped")
+            continue
+        if factors is None:
+            factors = _first_start(a, root, stage)
         else:
             print()
-            factors, summaries = _calibrate_trims(a, root, say, start=factors)
-            final = "stage 2a (flight-test trims, after stage 1)"
-    if a.stage in ("dynamic", "all"):
-        if "flight_test_results" not in load_aircraft_geometry(root, a.aircraft).data_files:
-            if a.stage == "dynamic":
-                raise CalibError(f"aircraft/{a.aircraft}/geometry.toml names no flight_test_results data ([data] "
-                                 "table): no dynamic tests")
-            print(f"\n{a.aircraft}: no dynamic flight-test data, stage 2b skipped")
-        else:
-            print()
-            factors, summaries = _calibrate_dynamic(a, root, say, start=factors)
-            final = "stage 2b (dynamic tests, after stages 1 and 2a)"
+            factors = steady_factors(factors) if stage == "trims" else factors
+        factors, summaries = STAGE_RUNS[stage](a, root, say, factors, run)
+        final = FINAL_MODEL[stage]
     where = "not written (--no-write)" if a.no_write else f"written to {root / 'aircraft' / a.aircraft}"
     print(f"\nfinal model: {final}, {where}")
     vs = verdicts(summaries)
@@ -213,7 +237,7 @@ def cmd_calibrate(a) -> int:
 def _evaluate_fleet(a) -> int:
     """``evaluate AIRCRAFT --data DIR``: every G1000 log of the folder (jsbsim_calib.fleet)."""
     with _simulator(a) as sim:
-        res = evaluate_fleet(sim, Path(a.data), executor=a.pool, progress=_progress(a.quiet))
+        res = evaluate_fleet(sim, Path(a.data), executor=a.pool, progress=_progress(a))
     print(format_fleet(res))
     if a.json:
         Path(a.json).write_text(json.dumps(res.to_json(), indent=2) + "\n")
@@ -253,14 +277,25 @@ def cmd_evaluate(a) -> int:
 MAX_POINTS = 10000          # synth --points
 
 
+def truth_folder(a) -> Path | None:
+    """synth --truth: an aircraft named as every command names one (a plain name: the folder
+    aircraft/NAME under --root), or an aircraft folder anywhere (a path; also a plain name that
+    is a folder here and no aircraft of --root). None when it is neither."""
+    named = Path(a.root) / "aircraft" / a.truth
+    plain = Path(a.truth).name == a.truth and a.truth not in (".", "..")
+    if plain and (named / f"{a.truth}.xml").is_file():
+        return named
+    return Path(a.truth) if Path(a.truth).is_dir() else None
+
+
 def cmd_synth(a) -> int:
     check_settings(a.seed, a.noise)
     if a.plan:
         return _synth_plan(a)
     if not 1 <= a.points <= MAX_POINTS:
         raise InputError("synth", Problem("--points", f"{a.points}: give a number of trims in [1, {MAX_POINTS}]"))
-    with Simulator.from_dir(Path(a.truth), Path(a.root)) as truth:
-        rows, skipped = synthesize(truth, n=a.points, seed=a.seed, noise=a.noise, progress=_progress(a.quiet))
+    with Simulator.from_dir(truth_folder(a), Path(a.root)) as truth:
+        rows, skipped = synthesize(truth, n=a.points, seed=a.seed, noise=a.noise, progress=_progress(a))
     if not rows:
         raise CalibError(f"synth: none of the {a.points} points trimmed on {Path(a.truth).name}; nothing written "
                          f"({'; '.join(skipped[:3])})")
@@ -273,9 +308,9 @@ def cmd_synth(a) -> int:
 
 def _synth_plan(a) -> int:
     plan = load_plan(a.plan)
-    with Simulator.from_dir(Path(a.truth), Path(a.root)) as truth:
+    with Simulator.from_dir(truth_folder(a), Path(a.root)) as truth:
         files = synthesize_maneuvers(truth, plan, Path(a.out), seed=a.seed, noise=a.noise,
-                                     progress=_progress(a.quiet))
+                                     progress=_progress(a))
     for f in files:
         print(f)
     print(f"{len(files)} time histories of {Path(a.truth).name} (plan {plan.name}, {plan.sample_rate_hz:g} Hz, "
@@ -289,7 +324,7 @@ def _close_loop_dynamic(a) -> int:
     if a.skip:
         raise CalibError("close-loop --flight-test: --skip reruns stage 2a for trim data, not for time histories")
     root = Path(a.root)
-    res = run_close_loop_dynamic(root, a.aircraft, a.flight_test, progress=_progress(a.quiet))
+    res = run_close_loop_dynamic(root, a.aircraft, a.flight_test, progress=_progress(a))
     print(format_result(res))
     written = None
     if not a.no_write:
@@ -308,7 +343,7 @@ def cmd_close_loop(a) -> int:
         return _close_loop_dynamic(a)
     root = Path(a.root)
     res = run_close_loop(root, a.aircraft, Path(a.data), skip_steps=tuple(a.skip or ()),
-                         progress=_progress(a.quiet))
+                         progress=_progress(a))
     s = res.summaries("all")
     print("before:")
     print(format_summary(s.before))
@@ -354,7 +389,7 @@ def cmd_part60(a) -> int:
     with Simulator(Path(a.root), a.aircraft) as sim:
         inputs = load_part60_inputs(a.flight_test, sim.geometry.control_travel_file)
         ev = evaluate_part60(sim, summary=inputs.summary, time_histories=inputs.time_histories,
-                             ignored=inputs.ignored, progress=_progress(a.quiet))
+                             ignored=inputs.ignored, progress=_progress(a))
     command = f"jsbsim-calib part60 {a.aircraft} --flight-test {' '.join(map(str, a.flight_test))}"
     files = write_part60_report(ev, Path(a.report_dir) / a.aircraft / "part60", command)
     print(format_part60_table(ev))
@@ -401,7 +436,7 @@ def cmd_validate(a) -> int:
     from .calibration.validation_dynamic import dynamic_fold_names, validate_dynamic
     from .physics_checks import run_physics_checks
     from .report.validation import format_physics, format_validation, write_validation_report
-    root, say, t0 = Path(a.root), _progress(a.quiet), time.perf_counter()
+    root, say, t0 = Path(a.root), _progress(a), time.perf_counter()
     geom = load_aircraft_geometry(root, a.aircraft)
     stages = (a.stage,)
     if a.stage == "all":
@@ -447,7 +482,7 @@ def cmd_slipstream(a) -> int:
     load_aircraft_geometry(root, a.aircraft)
     chosen = [v for v in SLIPSTREAM if not a.variant or v.name in a.variant]
     kw = {} if a.max_nfev is None else {"max_nfev": a.max_nfev}
-    results = compare_variants(root, a.aircraft, chosen, stages=a.stage, progress=_progress(a.quiet),
+    results = compare_variants(root, a.aircraft, chosen, stages=a.stage, progress=_progress(a),
                                executor=a.pool, **kw)
     print(format_comparison(a.aircraft, results))
     product = read_calibration(AircraftPaths(root, a.aircraft))
@@ -514,7 +549,7 @@ def cmd_export(a) -> int:
 
 def cmd_regress(a) -> int:
     from .regress import regress, write_baseline
-    say = _progress(a.quiet)
+    say = _progress(a)
     if a.write_baseline:
         print(f"baseline: {write_baseline(Path(a.root), a.aircraft, Path(a.write_baseline), a.data, say)}")
         return 0
@@ -595,7 +630,9 @@ def _analysis_parsers(sub) -> None:
 
     y = sub.add_parser("synth", help="synthetic flight-test snapshots (or, with --plan, time histories) flown by a "
                                      "truth aircraft folder")
-    y.add_argument("--truth", required=True, help="aircraft folder (its XML flies as it stands)")
+    y.add_argument("--truth", required=True, metavar="AIRCRAFT",
+                   help="the truth aircraft, flown as its XML stands: an aircraft name (folder aircraft/AIRCRAFT under "
+                        "--root), or a path to an aircraft folder anywhere")
     y.add_argument("--out", required=True, help="snapshot CSV to write; with --plan: the directory of the time histories")
     y.add_argument("--plan", help="fly a maneuver plan (TOML file, or 'level5' for the packaged Level 5 plan) and "
                                   "write one CSV + JSON per maneuver (format 1)")
@@ -632,7 +669,8 @@ def _positive_int(text: str) -> int:
     return n
 
 
-GLOBAL_DEFAULTS = {"root": ".", "quiet": False, "executor": "process", "workers": None, "scheduler": None}
+GLOBAL_DEFAULTS = {"root": ".", "quiet": False, "verbose": False, "log_file": None, "executor": "process",
+                   "workers": None, "scheduler": None}
 
 
 def _global_options(p, suppress: bool) -> None:
@@ -641,7 +679,13 @@ def _global_options(p, suppress: bool) -> None:
     command is not clobbered by a default)."""
     d = (lambda key: argparse.SUPPRESS) if suppress else GLOBAL_DEFAULTS.get
     p.add_argument("--root", default=d("root"), help="JSBSim root (holds aircraft/, engine/, data/); default: current dir")
-    p.add_argument("--quiet", action="store_true", default=d("quiet"), help="no progress lines")
+    p.add_argument("--quiet", action="store_true", default=d("quiet"),
+                   help="no progress display (it shows only on a terminal: a step counter, the time elapsed and an "
+                        "estimate of the time left)")
+    p.add_argument("--verbose", action="store_true", default=d("verbose"),
+                   help="every progress line (each fit iteration), time-stamped, on stderr")
+    p.add_argument("--log-file", metavar="FILE", default=d("log_file"),
+                   help="also write everything the command prints, and every progress line, to FILE")
     p.add_argument("--executor", choices=("serial", "process", "dask"), default=d("executor"),
                    help="where independent work runs (a fit's Jacobian columns ...): process pool (default), this "
                         "process, or a dask.distributed cluster; the results are the same bits on each")
@@ -676,11 +720,12 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
     c.add_argument("--stage", default="all", choices=("steady", "trims", "dynamic", "all"),
                    help="steady: POH climb/cruise (stage 1, resets later stages); trims: flight-test trims "
-                        "(stage 2a, from the aircraft's stage-1 factors); dynamic: damping and pitch axis on the "
-                        "dynamic tests (stage 2b, from the current factors); all (default, the main job): the "
-                        "three in order, those the aircraft's data allow")
+                        "(stage 2a); dynamic: damping and pitch axis on the dynamic tests (stage 2b); all (default, "
+                        "the main job): the three in order, those the aircraft's data allow")
     c.add_argument("--start", choices=("neutral", "current"), default="neutral",
-                   help="start from neutral factors (default, reproducible) or the current calibration")
+                   help="where the first stage starts (printed): neutral (default, reproducible: its own and later "
+                        "stages' factors neutral, earlier stages' as they recorded them in calibration.json, so the "
+                        "same command gives the same product) or the current calibration")
     c.add_argument("--skip", action="append", metavar="STEP",
                    help="trims stage: leave out a step (pitch, control, pfactor, flaps); repeatable")
     c.add_argument("--no-write", action="store_true", help="do not write the aircraft files")
@@ -762,8 +807,9 @@ def path_problems(a) -> list[Problem]:
         out += _input_file("--data", a.data)
     if a.command == "synth":
         out += _output_folder("--out", a.out) if a.plan else _output_file("--out", a.out)
-        if not Path(a.truth).is_dir():
-            out.append(Problem("--truth", f"{a.truth}: not an aircraft folder"))
+        if truth_folder(a) is None:
+            out.append(Problem("--truth", f"{a.truth}: neither an aircraft of --root ({Path(a.root) / 'aircraft'}) "
+                                          "nor an aircraft folder"))
     if a.command in ("close-loop", "part60"):
         out += [Problem("--flight-test", f"{f}: no such file or folder") for f in (a.flight_test or ())
                 if not Path(f).exists()]
@@ -782,8 +828,15 @@ def _run(args) -> int:
     problems = path_problems(args) + command_problems(args)
     if problems:
         raise InputError("command line", problems)
-    with command_guard(args), make_executor(args.executor, args.workers, args.scheduler) as args.pool:
-        return args.func(args)
+    finished = False
+    try:
+        with command_guard(args), make_executor(args.executor, args.workers, args.scheduler) as args.pool:
+            code = args.func(args)
+        finished = True
+        return code
+    finally:
+        for display in reversed(getattr(args, "displays", ())):      # each restores the streams it held
+            display.close(finished)
 
 
 def _terminate(signum, frame):
@@ -793,6 +846,20 @@ def _terminate(signum, frame):
 def main(argv=None) -> int:
     warnings.showwarning = _show_warning
     args = build_parser().parse_args(argv)
+    args.console = sys.stderr            # the progress display's stream (not the --log-file copy)
+    if not args.log_file:
+        return _main(args)
+    problems = _output_file("--log-file", args.log_file)
+    if problems:
+        print(f"error: {InputError('command line', problems)}", file=sys.stderr)
+        return 2
+    with open(args.log_file, "w") as log:
+        args.log = log
+        with contextlib.redirect_stdout(Tee(sys.stdout, log)), contextlib.redirect_stderr(Tee(sys.stderr, log)):
+            return _main(args)
+
+
+def _main(args) -> int:
     previous = None
     if threading.current_thread() is threading.main_thread():
         if signal.getsignal(signal.SIGINT) is _interrupted_loading:

@@ -1,7 +1,8 @@
 """Several files replaced as one unit: temporary files, a journal, then renames.
 
 :func:`commit` writes every new file to a temporary file beside its target (flushed to
-disk), copies the files it replaces to a backup folder (the last few kept), then writes a
+disk), copies the files it replaces to a backup folder (the last few kept; the commits of one
+run share one backup, which holds each file as it stood before the run), then writes a
 journal naming each temporary file and its target (atomically: the commit is decided when
 the journal exists), renames the temporary files over their targets, and removes the
 journal. A process killed at any point leaves either
@@ -25,6 +26,7 @@ from pathlib import Path
 from typing import Mapping, Sequence
 
 TMP_MARK = ".commit-"
+RUN_MARK = ".run"                  # in a backup folder: the run whose commits it backs up
 _ACTIVE: set[str] = set()          # tokens of commits running in this process
 
 
@@ -62,27 +64,60 @@ def _write_synced(path: Path, data: bytes) -> None:
         os.fsync(fh.fileno())
 
 
-def _backup(targets: Sequence[Path], folder: Path, keep: int) -> Path | None:
+def new_run() -> str:
+    """A token naming a run: its commits share one backup (:func:`commit`'s ``run``)."""
+    return uuid.uuid4().hex
+
+
+def _numbered(folder: Path) -> list[int]:
+    return sorted(int(d.name) for d in folder.iterdir() if d.is_dir() and d.name.isdigit()) if folder.is_dir() else []
+
+
+def _run_backup(folder: Path, run: str | None) -> Path | None:
+    """The newest backup of ``folder`` when it belongs to ``run``."""
+    numbers = _numbered(folder)
+    if run is None or not numbers:
+        return None
+    last = folder / str(numbers[-1])
+    mark = last / RUN_MARK
+    return last if mark.is_file() and mark.read_text().strip() == run else None
+
+
+def _backup(targets: Sequence[Path], folder: Path, keep: int, run: str | None = None) -> Path | None:
     """Copy the existing ``targets`` to ``folder/<n>/`` (n one more than the last); keep the
-    newest ``keep`` backups."""
+    newest ``keep`` backups. ``run``: a later commit of the same run adds to the run's backup
+    only the files it does not hold yet (the backup keeps the files as they stood before the
+    run)."""
     old = [t for t in targets if t.is_file()]
     if not old or keep <= 0:
         return None
+    same = _run_backup(folder, run)
+    if same is not None:
+        for t in old:
+            if not (same / t.name).exists():
+                shutil.copy2(t, same / t.name)
+        return same
     folder.mkdir(parents=True, exist_ok=True)
-    numbers = sorted(int(d.name) for d in folder.iterdir() if d.is_dir() and d.name.isdigit())
+    numbers = _numbered(folder)
     dest = folder / str((numbers[-1] if numbers else 0) + 1)
     dest.mkdir()
     for t in old:
         shutil.copy2(t, dest / t.name)
+    if run is not None:
+        (dest / RUN_MARK).write_text(run + "\n")
     for n in (numbers + [int(dest.name)])[:-keep]:
         shutil.rmtree(folder / str(n), ignore_errors=True)
     return dest
 
 
-def commit(files: Mapping[Path, bytes], journal: Path, *, backup: Path | None = None, keep: int = 3) -> Committed:
+def commit(files: Mapping[Path, bytes], journal: Path, *, backup: Path | None = None, keep: int = 3,
+           run: str | None = None) -> Committed:
     """Replace ``files`` (target -> bytes) as one unit (module doc); a target that holds its
     bytes already is left alone. ``journal``: the journal's path (one per set of files);
-    ``backup``: the folder of backups of the replaced files (``keep`` newest kept)."""
+    ``backup``: the folder of backups of the replaced files (``keep`` newest kept); ``run``
+    (:func:`new_run`): the commits of one run share one backup, of the files as they stood
+    before the run (issue 26: a run of three stages kept three backups and rotated that one
+    out)."""
     recover(journal, list(files))
     changed = {Path(p): d for p, d in files.items() if not (Path(p).is_file() and Path(p).read_bytes() == d)}
     if not changed:
@@ -94,7 +129,7 @@ def commit(files: Mapping[Path, bytes], journal: Path, *, backup: Path | None = 
         try:
             for tmp, target in pairs:
                 _write_synced(tmp, changed[target])
-            saved = _backup([t for _, t in pairs], backup, keep) if backup is not None else None
+            saved = _backup([t for _, t in pairs], backup, keep, run) if backup is not None else None
             doc = {"token": token, "pid": os.getpid(), "files": [[str(tmp), str(t)] for tmp, t in pairs]}
             jtmp = _tmp_name(journal, token)
             _write_synced(jtmp, (json.dumps(doc, indent=1) + "\n").encode())

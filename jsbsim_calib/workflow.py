@@ -21,7 +21,7 @@ from .calibration.closeloop import CloseLoopResult, close_loop
 from .calibration.dynamic import DYNAMIC_STEPS, DynamicStep, dynamic_stage
 from .calibration.fit import MAX_NFEV, FitResult
 from .calibration.points import stage1_subset
-from .calibration.steady import steady_factors, steady_stage
+from .calibration.steady import STAGE1_STEPS, steady_stage
 from .calibration.trims import TRIM_STEPS, TrimStep, trims_stage
 from .data.dynamic_tests import DynamicTest, aircraft_dynamic_tests
 from .data.flighttest import QuirkWarning
@@ -33,7 +33,7 @@ from .executor import SERIAL, Executor
 from .evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
 from .factors import FactorSet, switches
 from .jsbsim.probes import AeroCurves, aero_curves
-from .jsbsim.product import AircraftPaths, load_aircraft_geometry, propeller_tables
+from .jsbsim.product import AircraftPaths, load_aircraft_geometry, propeller_tables, read_calibration_record
 from .jsbsim.simulator import Simulator
 from .physics.propeller import PropellerTables
 
@@ -114,6 +114,66 @@ def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
                              time.perf_counter() - t0, trims, ci, ki, curves, tables)
 
 
+# --------------------------------------------------------------------------- where a stage starts, what it runs
+STAGES = ("steady", "trims", "dynamic")
+STAGE_NAMES = {"steady": "stage 1", "trims": "stage 2a", "dynamic": "stage 2b"}
+STAGE_DATA = {"steady": "poh_climb", "trims": "flight_test", "dynamic": "flight_test_results"}   # [data] key
+
+
+def _recorded_fits(record: dict, stage: str) -> list[dict]:
+    """The fit records of one stage in calibration.json, in the order they ran."""
+    st = record.get("stages", {}).get(stage)
+    if not isinstance(st, dict):
+        return []
+    return [st["fit"], st["fuel_flow"]] if stage == "steady" else list(st.get("steps", []))
+
+
+def recorded_start(record: dict, declared: FactorSet, stage: str) -> tuple[FactorSet, str]:
+    """Where ``stage`` starts when it runs alone (issue 26: the same command gives the same
+    product): the model switches the aircraft file declares, every earlier stage's factors as
+    that stage wrote them (the fits' final values in the calibration record, each fit over the
+    ones before it) and every other factor neutral, so that a rerun does not start from its own
+    last result. An earlier stage the record lacks leaves its factors neutral. Returns the
+    factors and a sentence that states them."""
+    values = dict(switches(declared).items())
+    used, missing = [], []
+    for earlier in STAGES[:STAGES.index(stage)]:
+        fits = _recorded_fits(record, earlier)
+        (used if fits else missing).append(STAGE_NAMES[earlier])
+        for f in fits:
+            values.update({n: d["final"] for n, d in f.get("factors", {}).items()})
+    text = (f"{STAGE_NAMES[stage]} starts from "
+            + (f"the factors {' and '.join(used)} wrote (calibration.json), every other factor neutral"
+               if used else "neutral factors")
+            + (f" ({' and '.join(missing)}: not recorded, its factors neutral)" if missing and used else "")
+            + ", model switches as the aircraft file sets them")
+    return FactorSet(values), text
+
+
+def stage_start(root: Path | str, name: str, stage: str) -> tuple[FactorSet, str]:
+    """:func:`recorded_start` for an aircraft of ``root``."""
+    with Simulator(Path(root), name) as sim:
+        declared = sim.declared
+    return recorded_start(read_calibration_record(AircraftPaths(Path(root), name)), declared, stage)
+
+
+def stage_plan(root: Path | str, name: str, stages: tuple[str, ...]) -> list[tuple[str, str, int | None]]:
+    """The fits ``stages`` will run on the aircraft, those its data allow, in order: (stage,
+    fit name, trims it took the last time or None). The fits are the ones the calibration
+    record lists for the stage (those the last run did), else the stage's definition."""
+    root = Path(root)
+    geom = load_aircraft_geometry(root, name)
+    record = read_calibration_record(AircraftPaths(root, name))
+    defined = {"steady": STAGE1_STEPS, "trims": tuple(st.name for st in TRIM_STEPS),
+               "dynamic": tuple(st.name for st in DYNAMIC_STEPS)}
+    out = []
+    for stage in (s for s in STAGES if s in stages and STAGE_DATA[s] in geom.data_files):
+        fits = _recorded_fits(record, stage)
+        out += ([(stage, f["stage"], f.get("trims")) for f in fits] if fits else
+                [(stage, fit_name, None) for fit_name in defined[stage]])
+    return out
+
+
 # --------------------------------------------------------------------------- stage 2a
 FLIGHT_TEST_KINDS = {"snapshot": "flight_test", "flap_climb": "flap_climb"}   # dataset kind -> [data] key
 
@@ -161,7 +221,8 @@ def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps:
     """Stage 2a on the aircraft's flight-test trims, from its stage-1 factors.
 
     ``skip``: names of steps left out (e.g. ``("pfactor",)``); ``start``: factors to start
-    from (default: the aircraft file's stage-1 factors, later ones neutral)."""
+    from (default :func:`recorded_start`: stage 1's factors as it recorded them, later ones
+    neutral)."""
     root = Path(root)
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
@@ -177,7 +238,8 @@ def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps:
         raise InputError("command line", Problem("--skip", f"unknown step(s) {', '.join(unknown)}; steps: "
                                                            f"{', '.join(st.name for st in steps)}"))
     with Simulator(root, name) as sim:
-        start = steady_factors(sim.factors) if start is None else start
+        if start is None:
+            start = recorded_start(read_calibration_record(AircraftPaths(root, name)), sim.declared, "trims")[0]
         evaluations: dict[str, dict[str, Evaluation]] = {}
 
         def evaluate(label: str, model_kind: str = "calibrated") -> None:
@@ -243,7 +305,8 @@ def run_dynamic(root: Path | str, name: str, *, start: FactorSet | None = None,
                 steps: tuple[DynamicStep, ...] = DYNAMIC_STEPS,
                 progress: Callable[[str], None] | None = None, executor: Executor = SERIAL,
                 max_nfev: int | None = MAX_NFEV) -> DynamicCalibration:
-    """Stage 2b on the aircraft's dynamic tests, from its current factors (stage 2a's)."""
+    """Stage 2b on the aircraft's dynamic tests, from ``start`` (default :func:`recorded_start`:
+    the factors stages 1 and 2a recorded, stage 2b's neutral)."""
     root = Path(root)
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
@@ -253,7 +316,8 @@ def run_dynamic(root: Path | str, name: str, *, start: FactorSet | None = None,
     ft = {ds.kind: ds for ds in aircraft_data(root, name, keys).values()}
     poh = aircraft_data(root, name)
     with Simulator(root, name) as sim:
-        start = sim.factors if start is None else start
+        if start is None:
+            start = recorded_start(read_calibration_record(AircraftPaths(root, name)), sim.declared, "dynamic")[0]
         sim.set_factors(start)
         say(f"flying {len(tests)} dynamic tests")
         before = evaluate_dynamic(sim, tests, executor=executor)

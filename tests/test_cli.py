@@ -123,3 +123,16 @@ def test_calibrate_json_and_the_exit_code_of_missed_targets(tmp_path, capsys):
     assert all(v["verdict"] in ("PASS", "FAIL") for v in d["verdicts"]) and "MISS" not in capsys.readouterr().out
     assert rc == (EXIT_TARGETS_MISSED if missed else 0)
     assert _verdict_exit(parse(*argv, "--exit-zero"), len(missed)) == 0
+
+
+def test_synth_takes_an_aircraft_name_as_every_command_does_and_still_a_folder(tmp_path, capsys):
+    """`synth --truth c172` (an aircraft of --root) flies the same truth as `--truth aircraft/c172`
+    (a folder): the same snapshots; a name that is neither is a clear error."""
+    by_name, by_folder = tmp_path / "name.csv", tmp_path / "folder.csv"
+    common = ["--root", str(REPO), "--quiet", "--executor", "serial", "synth", "--points", "2", "--seed", "3"]
+    assert main(common + ["--truth", "c172", "--out", str(by_name)]) == 0
+    assert main(common + ["--truth", str(REPO / "aircraft" / "c172"), "--out", str(by_folder)]) == 0
+    assert by_name.read_bytes() == by_folder.read_bytes() and len(by_name.read_text().splitlines()) > 1
+    capsys.readouterr()
+    assert main(common + ["--truth", "nosuch", "--out", str(tmp_path / "x.csv")]) == 2
+    assert "--truth" in capsys.readouterr().err

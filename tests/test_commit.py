@@ -100,6 +100,43 @@ def test_backups_keep_the_last_few(three):
     assert (journal.parent / "backup" / "5" / "a.xml").read_bytes() == b"new a.xml\n3"
 
 
+def test_one_run_keeps_one_backup_of_the_files_as_they_stood_before_it(three):
+    """Issue 26: the commits of one run (calibrate --stage all writes three times) share one
+    backup, of each file as it stood before the run, and rotate out no older backup; a file
+    the run's first commit left alone is saved when a later commit replaces it."""
+    old, new, journal = three
+    folder = journal.parent / "backup"
+    for k in range(3):                                        # three earlier runs
+        commit({p: d + str(k).encode() for p, d in new.items()}, journal, backup=folder, keep=3)
+    before = {p: p.read_bytes() for p in old}
+    a, b, c = sorted(old)
+    run = commit_mod.new_run()
+    first = commit({a: b"run 1", b: before[b]}, journal, backup=folder, keep=3, run=run)   # b: unchanged
+    second = commit({a: b"run 2", b: b"run 2"}, journal, backup=folder, keep=3, run=run)
+    third = commit({a: b"run 3", b: b"run 3", c: b"run 3"}, journal, backup=folder, keep=3, run=run)
+    assert first.backup == second.backup == third.backup == folder / "4"
+    assert sorted(d.name for d in folder.iterdir()) == ["2", "3", "4"]
+    assert {p.name: (folder / "4" / p.name).read_bytes() for p in old} == {p.name: d for p, d in before.items()}
+    nxt = commit({a: b"next run"}, journal, backup=folder, keep=3, run=commit_mod.new_run())
+    assert nxt.backup == folder / "5" and (folder / "5" / a.name).read_bytes() == b"run 3"
+
+
+def test_the_stages_of_one_calibrate_run_keep_one_backup_of_the_product(tmp_path):
+    """write_calibrated three times in one run (the main job's stage 1, 2a and 2b writes): one
+    backup, holding the product as it stood before the run."""
+    from jsbsim_calib.jsbsim.product import read_calibration, write_calibrated
+    root = copy_root(REPO, tmp_path / "root")
+    paths = AircraftPaths(root, "c172")
+    before = {p.name: p.read_bytes() for p in (paths.aircraft_xml, paths.propeller_xml, paths.calibration)}
+    run = commit_mod.new_run()
+    factors = read_calibration(paths)
+    for stage, k_cdi in (("steady", 1.01), ("trims", 1.02), ("dynamic", 1.03)):
+        done = write_calibrated(root, "c172", factors.updated({"K_cdi": k_cdi, "K_CT_scale": k_cdi}), stage, {},
+                                run=run)
+    assert [d.name for d in paths.backups.iterdir()] == [done.backup.name] == ["1"]
+    assert {n: (done.backup / n).read_bytes() for n in before} == before
+
+
 KILLER = """
 import os, signal, sys
 from pathlib import Path
@@ -228,13 +265,15 @@ def replace(a, b):
     real(a, b)
 c.os.replace = replace
 main(["--root", sys.argv[1], "--quiet", "--executor", "serial", "calibrate", "c172", "--stage", "dynamic",
-      "--report-dir", sys.argv[2]])
+      "--start", "current", "--report-dir", sys.argv[2]])
 """
 
 
 def _calibrate_dynamic(root: Path, reports: Path) -> None:
+    """Stage 2b from the current factors (--start current): from its stated start (the default)
+    it rewrites the committed product's bytes, which would write nothing."""
     assert main(["--root", str(root), "--quiet", "--executor", "serial", "calibrate", "c172", "--stage", "dynamic",
-                 "--report-dir", str(reports), "--exit-zero"]) == 0
+                 "--start", "current", "--report-dir", str(reports), "--exit-zero"]) == 0
 
 
 @pytest.mark.slow

@@ -131,6 +131,9 @@ def test_real_report_files(real, tmp_path):
     assert files.figures and all(f.is_file() and f"]({f.name})" in md for f in files.figures)
     _self_contained(html)
     assert html.count("<img") == len(files.figures)
+    sections = set(re.findall(r'<h2 id="([^"]+)"', html))            # the summary's rows link to their sections
+    links = re.findall(r'<tr><td><a href="#([^"]+)">', html)
+    assert len(links) == len(real.tests) and set(links) <= sections and len(set(links)) > 10
     for t in real.tests:
         assert f"| {t.test.id} |" in md
     assert "## Tests the model cannot do" in md and "fixed landing gear" in md

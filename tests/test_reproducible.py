@@ -131,6 +131,25 @@ def test_main_job_rewrites_the_committed_c172_byte_for_byte(tmp_path):
     assert not changed, f"these files differ from the committed ones: {changed}"
 
 
+def test_stage_2b_alone_starts_where_the_main_job_did_and_rewrites_its_bytes(tmp_path):
+    """`calibrate c172 --stage dynamic` on the committed product starts from the factors stages
+    1 and 2a recorded (issue 26: not from its own last result), so it rewrites the committed
+    product and stage-2b report byte for byte, and writes nothing: the same command, the same
+    product."""
+    root = _copy_root(tmp_path)
+    reports = tmp_path / "reports"
+    r = subprocess.run([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(root), "--quiet", "calibrate", "c172",
+                        "--stage", "dynamic", "--report-dir", str(reports)], capture_output=True, text=True)
+    assert r.returncode in (0, 3), r.stderr[-3000:]
+    assert "start: stage 2b starts from the factors stage 1 and stage 2a wrote (calibration.json)" in r.stdout
+    changed = [str(p.relative_to(root)) for p in root.rglob("*") if p.is_file()
+               and (REPO / p.relative_to(root)).read_bytes() != p.read_bytes()]
+    changed += [str(p.relative_to(tmp_path)) for p in reports.rglob("*") if p.is_file()
+                and (REPO / p.relative_to(tmp_path)).read_bytes() != p.read_bytes()]
+    assert not changed, f"these files differ from the committed ones: {changed}"
+    assert not (root / "aircraft" / "c172" / "backup").exists()        # nothing replaced
+
+
 def test_c172_fit_from_a_perturbed_start_lands_on_the_committed_factors():
     """Stages 1, 2a and 2b, started 1e-8 away: factors within the chain's stated tolerance
     (:data:`CHAIN_FACTOR_TOL_SE` standard errors), every prediction within

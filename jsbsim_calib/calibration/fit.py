@@ -30,6 +30,20 @@ RESTART_GAIN = 1e-6          # a restart must lower the cost by this share, or t
 MAX_NFEV = 600               # function evaluations of a whole fit
 
 
+class WorkLine(str):
+    """A progress line that counts its task's work (a fit: the trims it took so far), for a
+    display's estimate of the time left (:mod:`jsbsim_calib.report.progress`); a plain str to
+    any other reader."""
+
+    task: str
+    work: int
+
+    def __new__(cls, text: str, task: str, work: int):
+        line = super().__new__(cls, text)
+        line.task, line.work = task, int(work)
+        return line
+
+
 @dataclass
 class FitResult:
     """Outcome of one least-squares fit (one stage or step)."""
@@ -215,8 +229,8 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
         history.append({"iteration": len(history) + 1, "cost": c, "prior_multiple": state["weight"],
                         "trims": sim.trims - trims0})
         if progress:
-            progress(f"{stage}: iteration {len(history):3d}  cost {c:10.4g}  trims {sim.trims - trims0:6d}  "
-                     f"{time.perf_counter() - t0:6.1f} s")
+            progress(WorkLine(f"{stage}: iteration {len(history):3d}  cost {c:10.4g}  trims {sim.trims - trims0:6d}  "
+                              f"{time.perf_counter() - t0:6.1f} s", stage, sim.trims - trims0))
 
     def jac(x, f0):
         state["njev"] += 1
@@ -226,7 +240,8 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     state["warm"] = state["last"]
     cost0 = 0.5 * numerics.sum_sq(r0)
     if progress:
-        progress(f"{stage}: start cost {cost0:.4g} with {len(r0)} residuals, {len(names)} factors")
+        progress(WorkLine(f"{stage}: start cost {cost0:.4g} with {len(r0)} residuals, {len(names)} factors", stage,
+                          sim.trims - trims0))
     x, nfev, res = x0, 0, None
     for weight, step in (legs if legs is not None else LEGS if prior else LEGS[-2:]):   # no prior: no path
         state.update(weight=weight, step=step)

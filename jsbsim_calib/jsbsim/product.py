@@ -159,6 +159,14 @@ def read_calibration(paths: AircraftPaths) -> FactorSet:
         raise AircraftFileError(paths.calibration, Problem("factors", f"not a calibration record: {exc}")) from None
 
 
+def read_calibration_record(paths: AircraftPaths) -> dict:
+    """The whole calibration record (``{}`` when there is none); refused like :func:`read_calibration`."""
+    read_calibration(paths)                       # recovers, and checks the factors
+    if not paths.calibration.is_file():
+        return {}
+    return json.loads(paths.calibration.read_text())
+
+
 def rounded(factors: FactorSet) -> FactorSet:
     """The values the record stores (:data:`CALIBRATION_DIGITS` decimals): an aircraft written
     with them is what ``generate`` writes again from the record."""
@@ -340,19 +348,22 @@ def warn_hand_set(paths: AircraftPaths, hand: list[FactorChange], what: str, kep
                       f"set by hand (or by close-loop --in-place); {done}")
 
 
-def commit_product(paths: AircraftPaths, files: Mapping[Path, bytes]):
-    """Replace the product's ``files`` as one unit, backing up the replaced ones."""
-    return commit(files, paths.journal, backup=paths.backups, keep=BACKUPS_KEPT)
+def commit_product(paths: AircraftPaths, files: Mapping[Path, bytes], run: str | None = None):
+    """Replace the product's ``files`` as one unit, backing up the replaced ones (``run``: one
+    backup for all the commits of a run, :func:`jsbsim_calib.commit.commit`)."""
+    return commit(files, paths.journal, backup=paths.backups, keep=BACKUPS_KEPT, run=run)
 
 
-def write_calibrated(root: Path | str, name: str, factors: FactorSet, stage: str, record: dict) -> ProductWrite:
+def write_calibrated(root: Path | str, name: str, factors: FactorSet, stage: str, record: dict, *,
+                     run: str | None = None) -> ProductWrite:
     """Write calibrated factors into an aircraft of ``root`` as one unit: the aircraft file
     (values only: its comments, added functions and formatting stay), the baked propeller and
     the calibration record. A factor whose value in the file differs from calibration.json
     (set by hand) is named in a warning, as overwritten or (a model switch, a factor the stage
     does not fit) as kept and recorded; the replaced files are
-    backed up. A steady-stage result starts a new record (the flight-test stage builds on it
-    and must be rerun)."""
+    backed up (``run``, :func:`jsbsim_calib.commit.new_run`: the writes of one run keep one
+    backup, the product as it stood before the run). A steady-stage result starts a new
+    record (the flight-test stage builds on it and must be rerun)."""
     paths = AircraftPaths(Path(root), name)
     recover_product(paths)
     factors = rounded(factors)
@@ -368,7 +379,7 @@ def write_calibrated(root: Path | str, name: str, factors: FactorSet, stage: str
                                                 calibration=calibration_digest(factors)),
              paths.propeller_xml: propeller_bytes(paths, propeller, factors),
              paths.calibration: calibration_record_bytes(paths, factors, stage, record)}
-    done = commit_product(paths, files)
+    done = commit_product(paths, files, run)
     return ProductWrite(list(files), changes, [h.name for h in hand], done.backup)
 
 

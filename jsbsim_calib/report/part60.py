@@ -65,6 +65,7 @@ class Table:
     header: tuple[str, ...]
     rows: tuple[tuple[str, ...], ...]
     align: str = ""                       # one of l/r per column ("" : all left)
+    links: tuple[str, ...] = ()           # HTML: per row, the heading its first cell links to ("": none)
 
 
 @dataclass(frozen=True)
@@ -144,10 +145,25 @@ def png_bytes(fig: Figure) -> bytes:
 
 
 # --------------------------------------------------------------------------- the document
+IMPOSSIBLE = "Tests the model cannot do"
+
+
+def section_title(t: ObjectiveTest) -> str:
+    """The heading of a test's section (the list of tests the model cannot do for those)."""
+    return IMPOSSIBLE if t.test.not_possible else f"{t.test.id} {t.test.title}"
+
+
+def anchor(heading: str) -> str:
+    """An HTML id for a heading: lower case, letters, digits and hyphens (GitHub's way)."""
+    return re.sub(r"[^a-z0-9_ -]", "", heading.lower()).strip().replace(" ", "-")
+
+
 def summary_table(ev: Part60Evaluation, markdown: bool = True) -> Table:
+    """One row per test; in the HTML page each row's test links to its section."""
     rows = tuple((t.test.id, t.test.title, t.test.level, verdict_text(t.verdict, markdown), t.reason)
                  for t in ev.tests)
-    return Table(("Part 60", "test", "level", "verdict", "reason"), rows)
+    return Table(("Part 60", "test", "level", "verdict", "reason"), rows,
+                 links=tuple(anchor(section_title(t)) for t in ev.tests))
 
 
 def _case_tables(c: CaseResult) -> list[Block]:
@@ -184,7 +200,7 @@ def case_blocks(t: ObjectiveTest, c: CaseResult, k: int) -> list[Block]:
 
 def section_blocks(t: ObjectiveTest) -> list[Block]:
     s = t.test
-    out: list[Block] = [Heading(2, f"{s.id} {s.title}"),
+    out: list[Block] = [Heading(2, section_title(t)),
                         Para(f"Level {s.level}; flight conditions: {s.conditions}. Verdict: "
                              f"{verdict_text(t.verdict)}" + (f" ({t.reason})" if t.reason else "") + ".")]
     if s.note:
@@ -209,7 +225,7 @@ def document(ev: Part60Evaluation, command: str) -> list[Block]:
     ]
     impossible = [t for t in ev.tests if t.test.not_possible]
     if impossible:
-        blocks += [Heading(2, "Tests the model cannot do"),
+        blocks += [Heading(2, IMPOSSIBLE),
                    Bullets(tuple(f"{t.test.id} {t.test.title}: {t.test.not_possible}" for t in impossible))]
     if ev.ignored:
         blocks += [Heading(2, "Files and records not used"), Bullets(tuple(ev.ignored))]
@@ -256,8 +272,10 @@ def _html_table(b: Table) -> str:
     align = b.align or "l" * len(b.header)
     cls = lambda k: ' class="r"' if align[k] == "r" else ""
     head = "".join(f"<th{cls(k)}>{_inline(h)}</th>" for k, h in enumerate(b.header))
-    body = "".join("<tr>" + "".join(f"<td{cls(k)}>{_inline(c)}</td>" for k, c in enumerate(r)) + "</tr>"
-                   for r in b.rows)
+    link = lambda i, k, text: (f'<a href="#{b.links[i]}">{text}</a>' if k == 0 and i < len(b.links) and b.links[i]
+                               else text)
+    body = "".join("<tr>" + "".join(f"<td{cls(k)}>{link(i, k, _inline(c))}</td>" for k, c in enumerate(r)) + "</tr>"
+                   for i, r in enumerate(b.rows))
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
@@ -273,7 +291,8 @@ def to_html(blocks: Sequence[Block], title: str) -> str:
            f"<style>{STYLE}</style></head><body>"]
     for b in blocks:
         if isinstance(b, Heading):
-            out.append(f"<h{b.level}>{_inline(b.text)}</h{b.level}>")
+            ident = f' id="{anchor(b.text)}"' if b.level == 2 else ""
+            out.append(f"<h{b.level}{ident}>{_inline(b.text)}</h{b.level}>")
         elif isinstance(b, Para):
             out.append(f"<p>{_inline(b.text)}</p>")
         elif isinstance(b, Bullets):

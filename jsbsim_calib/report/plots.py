@@ -37,6 +37,14 @@ def _style(label: str) -> dict:
     return STYLES.get(label, dict(lw=1.4))
 
 
+def _with_unit(metric: str) -> str:
+    """A metric's axis text with its unit (every axis carries its unit)."""
+    return f"{metric} [{METRICS[metric].unit}]"
+
+
+PANELS_PER_ROW = 4          # a strip of more panels wraps to rows
+
+
 def climb_vs_altitude(evals: Mapping[str, object], ax=None) -> Figure:
     """Rate of climb vs pressure altitude: data markers per temperature, one line per model."""
     fig, ax = _ax(ax)
@@ -113,8 +121,8 @@ def parity(evals: Mapping[str, object], metric: str, ax=None) -> Figure:
         ax.fill_between(xs, xs - tol, xs + tol, color="tab:green", alpha=0.15, label="tolerance")
         ax.set_xlim(xs[0], xs[-1])
         ax.set_ylim(xs[0], xs[-1])
-    ax.set_xlabel(f"data {metric}")
-    ax.set_ylabel(f"model {metric}")
+    ax.set_xlabel(f"data {_with_unit(metric)}")
+    ax.set_ylabel(f"model {_with_unit(metric)}")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     ax.set_title(f"{metric}: parity")
@@ -123,9 +131,12 @@ def parity(evals: Mapping[str, object], metric: str, ax=None) -> Figure:
 
 def parity_panels(evals: Mapping[str, object], metric: str) -> Figure:
     """One parity panel per model state (e.g. baseline, after each step), same axes, with
-    the tolerance band and the share within it in each title."""
+    the tolerance band and the share within it in each title; more than
+    :data:`PANELS_PER_ROW` panels wrap to rows."""
     n = len(evals)
-    fig = Figure(figsize=(2.6 * n, 2.9), dpi=110)
+    cols = min(n, PANELS_PER_ROW)
+    rows = -(-n // PANELS_PER_ROW)
+    fig = Figure(figsize=(2.6 * cols, 2.9 * rows), dpi=110)
     pairs = {}
     for label, ev in evals.items():
         x = np.array([p.inputs.get(metric, np.nan) for p in ev.points], float)
@@ -141,7 +152,7 @@ def parity_panels(evals: Mapping[str, object], metric: str) -> Figure:
     m = METRICS[metric]
     tol = np.array([m.tol_for(v) for v in xs])
     for k, (label, (x, y)) in enumerate(pairs.items()):
-        ax = fig.add_subplot(1, n, k + 1)
+        ax = fig.add_subplot(rows, cols, k + 1)
         ax.fill_between(xs, xs - tol, xs + tol, color="tab:green", alpha=0.15, label="tolerance")
         ax.plot(xs, xs, "k-", lw=0.7)
         ok = np.isfinite(x) & np.isfinite(y)
@@ -156,9 +167,9 @@ def parity_panels(evals: Mapping[str, object], metric: str) -> Figure:
         ax.set_ylim(xs[0], xs[-1])
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
-        if k == 0:
-            ax.set_ylabel(f"model {metric}", fontsize=8)
-        ax.set_xlabel(f"data {metric}", fontsize=8)
+        if k % cols == 0:
+            ax.set_ylabel(f"model {_with_unit(metric)}", fontsize=8)
+        ax.set_xlabel(f"data {_with_unit(metric)}", fontsize=8)
     return fig
 
 
@@ -177,7 +188,7 @@ def residuals_vs(before, after, metric: str, regressor: str) -> Figure:
     ax.axhspan(-tol, tol, color="tab:green", alpha=0.12, label="tolerance")
     ax.axhline(0, color="k", lw=0.6)
     ax.set_xlabel(f"{regressor} [{unit}]")
-    ax.set_ylabel(f"{metric} model - data")
+    ax.set_ylabel(f"{metric} model - data [{METRICS[metric].unit}]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     ax.set_title(f"Residual of {metric} against the model's {regressor} ({unit})", fontsize=9)
@@ -196,9 +207,9 @@ def aero_polars(curves: Mapping[str, object], ax=None) -> Figure:
         a1.plot(c.alpha_deg, c.CL, label=label, **st)
         a2.plot(c.CD, c.CL, label=label, **st)
     a1.set_xlabel("angle of attack [deg]")
-    a1.set_ylabel("CL")
-    a2.set_xlabel("CD")
-    a2.set_ylabel("CL")
+    a1.set_ylabel("CL [-]")
+    a2.set_xlabel("CD [-]")
+    a2.set_ylabel("CL [-]")
     for a in (a1, a2):
         a.grid(alpha=0.3)
         a.legend(fontsize=7)
@@ -222,8 +233,8 @@ def propeller_curves(tables: Mapping[str, object], ax=None) -> Figure:
         ax.plot(t.J, ct, label=f"C_T {label}{note}", color=st.get("color"), ls=st["ls"])
         ax.plot(t.J, cp, label=f"C_P {label}{note}", color=st.get("color"), ls=":" if st["ls"] == "-" else "-.")
     ax.axhline(0, color="k", lw=0.6)
-    ax.set_xlabel("advance ratio J")
-    ax.set_ylabel("coefficient")
+    ax.set_xlabel("advance ratio J [-]")
+    ax.set_ylabel("coefficient [-]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     ax.set_title("Propeller tables")

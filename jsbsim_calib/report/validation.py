@@ -77,7 +77,8 @@ def fold_figure(validations: Sequence[Validation]) -> Figure:
                 ax.annotate("*", (i + 0.2, held[i]), ha="center", va="bottom", color="tab:red", fontsize=12)
         ax.set_xticks(x)
         ax.set_xticklabels([f"{m.fold}\n{m.metric}" for m in rows], rotation=90, fontsize=6)
-        ax.set_ylabel("RMSE / tolerance")
+        ax.axhline(1.0, color="k", lw=0.8, ls="--", label="RMSE = tolerance")
+        ax.set_ylabel("RMSE / tolerance [-]")
         ax.set_title(f"{v.aircraft}, {STAGE_TITLES.get(v.stage, v.stage)}: fit vs held-out error per fold "
                      f"(* flagged)", fontsize=9)
         ax.grid(axis="y", alpha=0.3)
