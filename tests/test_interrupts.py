@@ -41,9 +41,19 @@ def product(root: Path, name: str = "c172") -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in files if p.is_file()}
 
 
+def _ignore_sigint_until_taken() -> None:
+    """The child starts with SIGINT ignored and the command takes it as its first act (cli.py):
+    a Ctrl-C inside the interpreter's own start-up, before any line of the command runs, is
+    Python's (a KeyboardInterrupt traceback from its import machinery: seen on a loaded CI
+    machine, where start-up outlasted the test's shortest wait of 0.5 s), not the product's;
+    every moment from the command's first line on is the product's to handle."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def start(root: Path, *argv: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(root), "--quiet", "--workers",
-                             "2", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+                             "2", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
+                            preexec_fn=_ignore_sigint_until_taken)
 
 
 def wait_for(path: Path, timeout: float = 60.0) -> None:
