@@ -10,6 +10,7 @@ neutral factors, as the main job does.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Mapping
@@ -145,13 +146,13 @@ def compare_variants(root: Path | str, name: str, variants=SLIPSTREAM, *, stages
                      executor: Executor = SERIAL, max_nfev: int | None = MAX_NFEV) -> list[VariantResult]:
     """Each variant's chain, in order. Without stage 2a (``stages="steady"`` or no flight-test
     data) a variant that only adds fitted factors to its steps is the same as its switches
-    alone and is left out (said through ``progress``)."""
+    alone and is left out (a warning: the user asked for it)."""
     say = progress or (lambda s: None)
     trims = stages == "all" and "flight_test" in load_aircraft_geometry(Path(root), name).data_files
     out = []
     for v in variants:
         if v.fitted and not trims:
-            say(f"variant {v.name}: left out (no stage 2a here, so nothing fits its factors)")
+            warnings.warn(f"variant {v.name}: left out (no stage 2a here, so nothing fits its factors)")
             continue
         say(f"variant {v.name}: {v.doc}")
         out.append(run_variant(root, name, v, stages=stages, progress=say, executor=executor, max_nfev=max_nfev))
