@@ -33,7 +33,7 @@ propeller speed) are left out.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -178,16 +178,16 @@ def _usable(test, n: int) -> list[int]:
 
 @dataclass
 class _Rows:
-    residual: list = None
-    columns: list = None
-    axis: list = None
-    group: list = None
+    """The rows of every maneuver so far: residual, columns, axis and maneuver of each."""
 
-    def __post_init__(self):
-        self.residual, self.columns, self.axis, self.group = [], [], [], []
+    residual: list = field(default_factory=list)
+    columns: list = field(default_factory=list)
+    axis: list = field(default_factory=list)
+    group: list = field(default_factory=list)
 
 
-def _evaluate(sim: Simulator, s: _Start, rec, k: int, cols: Sequence[Column]) -> tuple[np.ndarray, np.ndarray]:
+def _evaluate(sim: Simulator, s: _Start, rec, k: int,
+              cols: Sequence[Column]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Sample k: the model's moments and lift (-Fz) divided by their references, and the
     columns (the same units), four rows each."""
     _set_sample(sim, s, rec, k)
