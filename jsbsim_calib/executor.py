@@ -22,7 +22,6 @@ import os
 import shutil
 import signal
 from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import cloudpickle
@@ -62,39 +61,6 @@ def _worker_init() -> None:
     atexit.register(lambda: [_close(f) for f in _CACHE.values()])
 
 
-class Executor:
-    """Runs ``fn(item)`` for every item; results in order. ``key``: a name that stays with the
-    same function across calls (a fit's problem): it is serialized once and every worker
-    unpickles it once."""
-
-    name = "serial"
-    workers = 1
-
-    def map(self, fn: Callable[[Any], Any], items: Sequence, key: str | None = None) -> list:
-        """In this process, as a worker would: a keyed function runs on its own unpickled copy
-        (made once per key), so the caller's simulator keeps its state (its warm starts, its
-        loaded JSBSim) and the results are the pool's bits."""
-        if key is None:
-            return [fn(i) for i in items]
-        payload = cloudpickle.dumps(fn)      # by content, as a worker keeps it: a copy is never stale
-        return [_call(hashlib.sha1(payload).hexdigest(), payload, i) for i in items]
-
-    def close(self) -> None:
-        pass
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-    def describe(self) -> str:
-        return f"{self.name} ({self.workers} worker{'s' if self.workers != 1 else ''})"
-
-
-SERIAL = Executor()
-
-
 class _Payloads:
     """Serialized functions by key (the last few)."""
 
@@ -113,16 +79,52 @@ class _Payloads:
         return out
 
 
+class Executor:
+    """Runs ``fn(item)`` for every item; results in order. ``key``: a name that stays with the
+    same function across calls (a fit's problem): it is serialized once and every worker
+    unpickles it once."""
+
+    name = "serial"
+    workers = 1
+
+    def __init__(self):
+        self._payloads = _Payloads()
+
+    def map(self, fn: Callable[[Any], Any], items: Sequence, key: str | None = None) -> list:
+        """In this process, as a worker would: a keyed function runs on its own unpickled copy
+        (made once per key, as a worker makes it), so the caller's simulator keeps its state
+        (its warm starts, its loaded JSBSim) and the results are the pool's bits."""
+        if key is None:
+            return [fn(i) for i in items]
+        digest, payload = self._payloads.get(fn, key)
+        return [_call(digest, payload, i) for i in items]
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def describe(self) -> str:
+        return f"{self.name} ({self.workers} worker{'s' if self.workers != 1 else ''})"
+
+
+SERIAL = Executor()
+
+
 class ProcessExecutor(Executor):
     """A pool of worker processes on this machine (spawned: no state inherited by accident)."""
 
     name = "process"
 
     def __init__(self, workers: int | None = None):
+        super().__init__()
         self.workers = max(1, int(workers or os.cpu_count() or 1))
         self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
                                          initializer=_worker_init)
-        self._payloads = _Payloads()
         self._dir = make_dir("jsbsim-calib-tasks-")
 
     def map(self, fn, items, key=None):
@@ -150,6 +152,7 @@ class DaskExecutor(Executor):
             from distributed import Client, LocalCluster
         except ImportError as exc:      # pragma: no cover - the extra is part of the test install
             raise CalibError("the dask executor needs dask.distributed: pip install 'jsbsim-calib[cluster]'") from exc
+        super().__init__()
         self._cluster = None
         if scheduler:
             try:
@@ -162,7 +165,6 @@ class DaskExecutor(Executor):
                                          processes=True, dashboard_address=None)
             self._client = Client(self._cluster)
         self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
-        self._payloads = _Payloads()
         self._scattered: dict = {}
 
     def map(self, fn, items, key=None):

@@ -134,10 +134,36 @@ def _checked_box(x0, lower, upper) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return x, lower, upper
 
 
+def _damped_steps(A, g, d, free, x, lower, upper, lam: float, nu: float, xtol: float, count: int):
+    """The next ``count`` trial steps of the damping sequence from (lam, nu), as a rejection of
+    each would make them: [(x_new, step, lam, nu)], the status that ends the sequence before
+    ``count`` steps (0: no evaluations left, 2: step below xtol) or None, and (lam, nu) after
+    the last step's rejection. A singular damped system raises the damping and is no step."""
+    out = []
+    while True:
+        if len(out) >= count:
+            return out, (0 if count == 0 else None), (lam, nu)
+        step = np.zeros_like(x)
+        try:
+            step[free] = solve(A[np.ix_(free, free)] + lam * np.diag(d[free]), -g[free])
+        except SingularMatrixError:
+            lam, nu = lam * nu, 2.0 * nu
+            continue
+        x_new = np.clip(x + step, lower, upper)
+        s = x_new - x
+        if norm(s) <= xtol * (1.0 + norm(x)):
+            return out, 2, (lam, nu)
+        out.append((x_new, s, lam, nu))
+        lam, nu = lam * nu, 2.0 * nu
+
+
 def least_squares(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray, np.ndarray], np.ndarray], x0,
                   lower, upper, *, ftol: float = 1e-9, xtol: float = 1e-9, gtol: float = 1e-9,
                   max_nfev: int | None = None, lam0: float = 1e-3,
-                  callback: Callable[[float], None] | None = None) -> LSQResult:
+                  callback: Callable[[float], None] | None = None,
+                  on_trial: Callable[[np.ndarray], None] | None = None,
+                  trials: Callable[[list[np.ndarray]], list[np.ndarray]] | None = None,
+                  batch: int = 1) -> LSQResult:
     """Minimize 1/2 |fun(x)|^2 on the box [lower, upper]: Levenberg-Marquardt with
     Marquardt's diagonal scaling and Nielsen's damping update, steps projected onto the box,
     factors on a bound that the gradient pushes outward held there (an active set).
@@ -145,9 +171,16 @@ def least_squares(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.nda
     Stops when an accepted step lowers the cost by less than ``ftol`` of it, when a step is
     shorter than ``xtol`` (1 + |x|), when the projected gradient is below ``gtol`` (1 + cost),
     or after ``max_nfev`` residual evaluations. ``jac(x, fun(x))`` gives the Jacobian;
-    ``callback(cost)`` runs after each accepted step. A start outside the box (or not finite),
+    ``on_trial(x)`` runs for each trial point taken into account (in order), ``callback(cost)``
+    after each accepted step. A start outside the box (or not finite),
     a lower bound not below its upper bound, or a residual at the start that is not finite is a
     :class:`ProblemError` (the start is never clipped).
+
+    ``trials`` (a list of points -> their residuals) with ``batch`` > 1 evaluates the next
+    ``batch`` trial points of the damping sequence at once (the steps a rejection would try
+    next, each more damped): on a parallel executor the rejections cost no extra round. The
+    first trial that lowers the cost is taken, as one at a time would: the same iterates, the
+    same counts, the same bits, whatever the batch.
     Deterministic: the same inputs give the same bits on any CPU (module doc).
     """
     x, lower, upper = _checked_box(x0, lower, upper)
@@ -156,6 +189,8 @@ def least_squares(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.nda
     if bad.size:
         raise ProblemError(f"least_squares: {bad.size} of {r.size} residuals are not finite at the start x0 "
                            f"(first at index {int(bad[0])}: {r[bad[0]]}); the cost is not defined there")
+    evaluate = trials if trials is not None else (lambda xs: [fun(xi) for xi in xs])
+    batch = max(1, int(batch)) if trials is not None else 1
     cost, nfev, njev = 0.5 * sum_sq(r), 1, 0
     lam, nu, status, J = None, 2.0, None, None
     while status is None:
@@ -169,34 +204,34 @@ def least_squares(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.nda
             break
         d = np.maximum(np.diag(A), 1e-12 * max(1.0, float(np.max(np.diag(A)))))
         lam = lam0 if lam is None else lam
-        while True:
-            if max_nfev is not None and nfev >= max_nfev:
-                status = 0
+        while status is None:
+            room = None if max_nfev is None else max_nfev - nfev
+            steps, stop, (lam_next, nu_next) = _damped_steps(A, g, d, free, x, lower, upper, lam, nu, xtol,
+                                                             min(batch, batch if room is None else max(room, 0)))
+            accepted = False
+            for (x_new, s, lam_at, nu_at), r_new in zip(steps, evaluate([st[0] for st in steps]) if steps else []):
+                r_new = np.asarray(r_new, float)
+                nfev += 1
+                if on_trial:
+                    on_trial(x_new)
+                cost_new = 0.5 * sum_sq(r_new) if np.all(np.isfinite(r_new)) else math.inf
+                if cost_new < cost:
+                    predicted = -(dot(g, s) + 0.5 * dot(s, matvec(A, s)))
+                    rho = (cost - cost_new) / predicted if predicted > 0 else 0.0
+                    lam, nu = lam_at * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 2.0
+                    gain = cost - cost_new
+                    x, r, cost = x_new, r_new, cost_new
+                    if callback:
+                        callback(cost)
+                    if gain <= ftol * cost:
+                        status = 3
+                    accepted = True
+                    break
+                lam, nu = lam_at * nu_at, 2.0 * nu_at
+            if accepted:
                 break
-            step = np.zeros_like(x)
-            try:
-                step[free] = solve(A[np.ix_(free, free)] + lam * np.diag(d[free]), -g[free])
-            except SingularMatrixError:
-                lam, nu = lam * nu, 2.0 * nu
-                continue
-            x_new = np.clip(x + step, lower, upper)
-            s = x_new - x
-            if norm(s) <= xtol * (1.0 + norm(x)):
-                status = 2
-                break
-            r_new = np.asarray(fun(x_new), float)
-            nfev += 1
-            cost_new = 0.5 * sum_sq(r_new) if np.all(np.isfinite(r_new)) else math.inf
-            if cost_new < cost:
-                predicted = -(dot(g, s) + 0.5 * dot(s, matvec(A, s)))
-                rho = (cost - cost_new) / predicted if predicted > 0 else 0.0
-                lam, nu = lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 2.0
-                gain = cost - cost_new
-                x, r, cost = x_new, r_new, cost_new
-                if callback:
-                    callback(cost)
-                if gain <= ftol * cost:
-                    status = 3
-                break
-            lam, nu = lam * nu, 2.0 * nu
+            if stop is not None:
+                status = stop
+            else:
+                lam, nu = lam_next, nu_next
     return LSQResult(x, cost, r, J, nfev, njev, status, MESSAGES[status])

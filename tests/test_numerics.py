@@ -62,3 +62,37 @@ def test_residuals_not_finite_at_the_start_are_refused(bad):
 def test_a_start_on_the_bound_is_inside():
     res = least_squares(fun, jac, [1.0, -1.0], -1.0, 1.0)
     assert res.x == pytest.approx([0.3, 0.5], abs=1e-8)
+
+
+def rosenbrock(x):
+    return np.array([10.0 * (x[1] - x[0] ** 2), 1.0 - x[0], 0.3 * np.sin(3.0 * x[0] * x[1])])
+
+
+def rosenbrock_jac(x, r):
+    h = 1e-7
+    return np.column_stack([(rosenbrock(x + h * e) - r) / h for e in np.eye(2)])
+
+
+@pytest.mark.parametrize("max_nfev", [None, 7, 12])
+@pytest.mark.parametrize("batch", [2, 3, 8])
+def test_a_batch_of_trial_points_takes_the_steps_one_at_a_time_takes(batch, max_nfev):
+    """Trial points evaluated ``batch`` at a time (a parallel executor's round) give the same
+    iterates, counts and bits as one at a time, also when the evaluation budget ends inside a
+    batch; the trials taken into account are reported in order, and more are evaluated than
+    counted only where rejections were possible."""
+    seen, taken = {"one": [], "batch": []}, []
+
+    def trials(xs):
+        seen["batch"].extend(x.copy() for x in xs)
+        return [rosenbrock(x) for x in xs]
+
+    one = least_squares(rosenbrock, rosenbrock_jac, [-0.9, 0.8], -2.0, 2.0, max_nfev=max_nfev,
+                        on_trial=lambda x: seen["one"].append(x.copy()))
+    many = least_squares(rosenbrock, rosenbrock_jac, [-0.9, 0.8], -2.0, 2.0, max_nfev=max_nfev, trials=trials,
+                         batch=batch, on_trial=lambda x: taken.append(x.copy()))
+    assert one.x.tobytes() == many.x.tobytes() and one.cost == many.cost
+    assert (one.nfev, one.njev, one.status) == (many.nfev, many.njev, many.status)
+    assert len(taken) == len(seen["one"]) == one.nfev - 1 > 3
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(taken, seen["one"]))
+    assert len(seen["batch"]) >= len(taken)
+    assert max_nfev is None or many.nfev <= max_nfev

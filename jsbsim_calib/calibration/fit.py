@@ -146,7 +146,8 @@ class FitProblem:
     multiple): every evaluation starts from a freshly loaded JSBSim and the given warm starts,
     so that it gives the same bits in this process or in any executor's worker, whatever ran
     before. Called with an item ``(x, warm_starts, prior_multiple)`` it returns the residuals
-    (the executors' form)."""
+    (the executors' form); with ``(x, warm_starts, prior_multiple, True)``, the whole
+    :class:`Evaluation` (a trial point, whose warm starts the next steps need)."""
 
     def __init__(self, sim: Simulator, residuals, start: FactorSet, names: Sequence[str], x_center: np.ndarray,
                  prior: float):
@@ -154,20 +155,33 @@ class FitProblem:
         self.x_center, self.prior = x_center, prior
         self.key = uuid.uuid4().hex        # one serialization per fit (executors)
 
-    def evaluate(self, x: np.ndarray, warm: dict, weight: float) -> tuple[np.ndarray, list[str], dict]:
+    def evaluate(self, x: np.ndarray, warm: dict, weight: float) -> "Evaluation":
         fs = self.start.with_vector(self.names, np.clip(x, -1, 1))
         sim = self.sim
+        trims0 = sim.trims
         sim.trim_cache = dict(warm)
-        sim.set_factors(fs)
-        sim.fresh()
+        if not sim.set_factors(fs):          # a reload there is already a fresh JSBSim
+            sim.fresh()
         r, lab = self.residuals(fs)
         if self.prior:
             r = np.concatenate([r, weight * self.prior * (fs.vector(self.names) - self.x_center)])
             lab = list(lab) + [f"prior {n}" for n in self.names]
-        return r, list(lab), sim.trim_cache
+        return Evaluation(r, list(lab), sim.trim_cache, sim.trims - trims0)
 
-    def __call__(self, item) -> np.ndarray:
-        return self.evaluate(*item)[0]
+    def __call__(self, item):
+        out = self.evaluate(*item[:3])
+        return out if len(item) > 3 and item[3] else out.residuals
+
+
+@dataclass
+class Evaluation:
+    """One evaluation of a fit's residuals: with its labels, the trim warm starts it leaves and
+    the trims it took."""
+
+    residuals: np.ndarray
+    labels: list[str]
+    warm: dict
+    trims: int
 
 
 def _jacobian(problem: FitProblem, executor: Executor, x: np.ndarray, f0: np.ndarray, step: float, warm: dict,
@@ -207,7 +221,7 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     Jacobian's columns run on ``executor`` and give the same bits there.
     """
     names = list(names)
-    t0, trims0 = time.perf_counter(), sim.trims
+    t0 = time.perf_counter()
     x0 = start.vector(names)
     bad = [n for n, x in zip(names, x0) if not -1.0 <= x <= 1.0]
     if bad:
@@ -216,21 +230,38 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
                          (prior_center or FactorSet(extra=start.extra)).vector(names), prior)
     labels: list[str] = []
     history: list[dict] = []
-    state = {"weight": 1.0, "step": LEGS[0][1], "warm": dict(sim.trim_cache), "last": {}, "njev": 0}
+    state = {"weight": 1.0, "step": LEGS[0][1], "warm": dict(sim.trim_cache), "last": {}, "njev": 0, "trims": 0,
+             "trials": {}}
+
+    def counted(ev: Evaluation) -> Evaluation:         # an evaluation the serial algorithm makes
+        labels[:] = ev.labels
+        state["last"] = ev.warm
+        state["trims"] += ev.trims
+        return ev
 
     def fun(x):
-        r, lab, warm = problem.evaluate(x, state["warm"], state["weight"])
-        labels[:] = lab
-        state["last"] = warm
-        return r
+        return counted(problem.evaluate(x, state["warm"], state["weight"])).residuals
+
+    def trials(xs):
+        """Trial points: in this process one at a time, or as one batch on the executor (each
+        counted when the least-squares walk takes it into account: :func:`on_trial`)."""
+        if len(xs) == 1:
+            ev = problem.evaluate(xs[0], state["warm"], state["weight"])
+        evs = [ev] if len(xs) == 1 else executor.map(
+            problem, [(xi, state["warm"], state["weight"], True) for xi in xs], key=problem.key)
+        state["trials"] = {xi.tobytes(): e for xi, e in zip(xs, evs)}
+        return [e.residuals for e in evs]
+
+    def on_trial(x):
+        counted(state["trials"][x.tobytes()])
 
     def callback(c: float):           # a step was accepted: its warm starts are the next evaluations'
         state["warm"] = state["last"]
         history.append({"iteration": len(history) + 1, "cost": c, "prior_multiple": state["weight"],
-                        "trims": sim.trims - trims0})
+                        "trims": state["trims"]})
         if progress:
-            progress(WorkLine(f"{stage}: iteration {len(history):3d}  cost {c:10.4g}  trims {sim.trims - trims0:6d}  "
-                              f"{time.perf_counter() - t0:6.1f} s", stage, sim.trims - trims0))
+            progress(WorkLine(f"{stage}: iteration {len(history):3d}  cost {c:10.4g}  trims {state['trims']:6d}  "
+                              f"{time.perf_counter() - t0:6.1f} s", stage, state["trims"]))
 
     def jac(x, f0):
         state["njev"] += 1
@@ -241,7 +272,7 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     cost0 = 0.5 * numerics.sum_sq(r0)
     if progress:
         progress(WorkLine(f"{stage}: start cost {cost0:.4g} with {len(r0)} residuals, {len(names)} factors", stage,
-                          sim.trims - trims0))
+                          state["trims"]))
     x, nfev, res = x0, 0, None
     for weight, step in (legs if legs is not None else LEGS if prior else LEGS[-2:]):   # no prior: no path
         state.update(weight=weight, step=step)
@@ -251,18 +282,19 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
             if left is not None and left <= 0:
                 break
             res = numerics.least_squares(fun, jac, x, -1.0, 1.0, ftol=ftol, xtol=ftol, gtol=ftol,
-                                         max_nfev=left, callback=callback)
+                                         max_nfev=left, callback=callback, on_trial=on_trial, trials=trials,
+                                         batch=executor.workers)
             nfev += res.nfev
             gained = res.cost < (1.0 - RESTART_GAIN) * cost
             x, cost = res.x, min(cost, float(res.cost))
             if not gained:
                 break
     final = start.with_vector(names, x)
-    r_final, _, _ = problem.evaluate(x, state["warm"], 1.0)     # leaves the simulator at the final factors
+    r_final = counted(problem.evaluate(x, state["warm"], 1.0)).residuals    # leaves the simulator at the final factors
     se, corr = _stderr(res.jac, names, r_final, final)
     return FitResult(stage, names, start, final, cost0, 0.5 * numerics.sum_sq(r_final), nfev,
                      state["njev"], int(res.status), str(res.message), time.perf_counter() - t0,
-                     sim.trims - trims0, se, corr, history, list(labels), r_final)
+                     state["trims"], se, corr, history, list(labels), r_final)
 
 
 def unfitted(stage: str, names: Sequence[str], start: FactorSet,

@@ -537,9 +537,10 @@ class ForeignSimulator(Simulator):
     def add_effect(self, effect, values=None) -> None:
         raise ModelError(f"{self.name} is not a workbench aircraft: effects are added to generated aircraft only")
 
-    def set_factors(self, factors: FactorSet) -> None:
+    def set_factors(self, factors: FactorSet) -> bool:
         if factors.changed():
             raise ModelError(f"{self.name} is not a workbench aircraft: it has no calibration factors")
+        return False
 
     def set_loading(self, weight_lb: float, cg_in: float | None = None, fuel_fraction: float | None = None) -> None:
         """Weight and CG by the module's conventions (tanks, then the point masses)."""

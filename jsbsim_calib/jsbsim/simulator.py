@@ -25,12 +25,13 @@ from .aircraft import (add_effect, add_trim_aid, declared_factors, effect_consta
                        effect_values, moment_of_inertia, set_effect_values, set_factor_values,
                        set_moment_of_inertia)
 from .condition import Condition, TrimResult
-from .product import (AircraftPaths, Propeller, check_consistent, load_aircraft_geometry, read_bem_csv,
-                      recover_product, write_aircraft)
+from .product import (AircraftPaths, Propeller, check_consistent, load_aircraft_geometry, propeller_bytes,
+                      read_bem_csv, recover_product, write_aircraft)
 from .propulsion import read_baked_factors
-from .xml import Tree, copy, parse, read, structure_problems, tostring, tree
+from .xml import Tree, copy, parse, read, structure_problems, tostring, tree, write_bytes
 
 INDICATED_SURFACES = ("elevator", "aileron", "rudder")    # fcs/<surface>-ind-deg, where an aircraft defines it
+PROPELLER_CACHE = 64         # baked propeller files kept per simulator (a fit's Jacobian: one per propeller factor)
 
 
 class Simulator:
@@ -69,6 +70,8 @@ class Simulator:
             self.effect_values: dict[str, float] = effect_property_values(self._tree)
             shutil.copy(self.paths.engine_xml, self._box / "engine")
             self._box_paths = AircraftPaths(self._box, name)
+            self._propellers: dict[tuple, bytes] = {}
+            self._propeller_xml: Path | None = None
             self._write_sandbox(aircraft=True, propeller=True)
             self._baked = {k: self.factors[k] for k in PROPELLER_FACTORS}
             self.loads = 0
@@ -158,13 +161,24 @@ class Simulator:
                              f"through the tables: run 'jsbsim-calib generate {self.name}' after editing them")
 
     def _write_sandbox(self, *, aircraft: bool, propeller: bool) -> None:
-        """The sandbox's aircraft (with the trim aid) and/or propeller at the current factors."""
-        box = None
+        """The sandbox's aircraft (with the trim aid) and/or propeller at the current factors.
+        Propeller tables are baked once per set of propeller factors (kept in memory: a fit's
+        Jacobian steps a propeller factor and back many times)."""
         if aircraft:
             box = copy(self._tree)
             add_trim_aid(box, self.geometry.propeller.location_m)
-        write_aircraft(self._box_paths, self.factors, aircraft=box, effect_values=self.effect_values,
-                       propeller=Propeller(self.geometry, self.bem, self.name) if propeller else None)
+            write_aircraft(self._box_paths, self.factors, aircraft=box, effect_values=self.effect_values)
+        if propeller:
+            key = tuple(self.factors[k] for k in PROPELLER_FACTORS)
+            baked = self._propellers.get(key)
+            if baked is None:
+                if len(self._propellers) >= PROPELLER_CACHE:
+                    self._propellers.pop(next(iter(self._propellers)))
+                if self._propeller_xml is None:
+                    self._propeller_xml = self._box_paths.propeller_xml
+                baked = self._propellers[key] = propeller_bytes(
+                    self._box_paths, Propeller(self.geometry, self.bem, self.name), self.factors)
+            write_bytes(self._propeller_xml, baked)
 
     @property
     def sandbox(self) -> Path:
@@ -273,20 +287,28 @@ class Simulator:
         return copy(self._tree)
 
     # ------------------------------------------------------------------ factors and loading
-    def set_factors(self, factors: FactorSet) -> None:
-        """Apply factor values: properties directly, propeller factors by re-baking + reload."""
+    def set_factors(self, factors: FactorSet) -> bool:
+        """Apply factor values: properties directly, propeller factors by re-baking + reload.
+        Returns True when it reloaded (a fresh JSBSim at these values: :meth:`fresh` needs
+        not run again)."""
+        extra = {f.property: float(factors[n]) for n, f in factors.extra.items()}
+        unknown = [k for k in extra if k not in self.effect_values]
+        if unknown:
+            raise ModelError(f"the aircraft has no effect factor {unknown[0]}")
         prop_changed = any(abs(factors[k] - self._baked[k]) > 0 for k in PROPELLER_FACTORS)
         self.factors = factors
+        self.effect_values.update(extra)
         if prop_changed:
             self._write_sandbox(aircraft=False, propeller=True)
             self._baked = {k: factors[k] for k in PROPELLER_FACTORS}
-            self.fdm = self._load()
+            self.fdm = self._load()              # the values are set before its initialization
+            return True
         for name, f in REGISTRY.items():
             if not f.baked:
                 self.fdm[f.property] = factors[name]
-        extra = {f.property: factors[n] for n, f in factors.extra.items()}
-        if extra:
-            self.set_effect_values(extra)
+        for k, v in extra.items():
+            self.fdm[k] = v
+        return False
 
     def set_loading(self, weight_lb: float, cg_in: float | None = None, fuel_fraction: float | None = None) -> None:
         """Total weight and CG station through the payload point mass; other stations empty

@@ -1,0 +1,176 @@
+"""Scaling of the calibration with workers: the process pool and a Dask LocalCluster.
+
+    python benchmarks/scaling.py [--workers 1,2,4] [--executors process,dask] [--chain] [--profile]
+
+For each executor and worker count it runs the C172 steady stage (stage 1 from neutral
+factors, as the main job, nothing written) and, with ``--chain``, the chain of stages 1, 2a
+and 2b. It prints:
+
+* wall time, speed-up over one worker and parallel efficiency, and whether the factors are
+  the serial run's bits (they must be: the executors and the batches change only where an
+  evaluation runs, never what it computes);
+* the serial fraction, measured two ways: from the one-worker run (the time outside batches
+  of independent evaluations, over the wall time), and from each measured speed-up S on p
+  workers (Karp-Flatt: e = (1/S - 1/p) / (1 - 1/p)); with Amdahl's law each predicts the
+  speed-up at 16 and 64 workers (a fit of n factors has at most n independent Jacobian
+  columns: more workers than that wait);
+* with ``--profile``, where the one-worker steady stage spends its time: JSBSim trims, loads,
+  sandbox files, pickling, the least-squares algebra, and the rest.
+
+Compare figures only within one run on one machine. Issue 25's targets: the steady stage on 2
+workers >= 1.8x faster than on 1; a serial fraction that predicts >= 8x at 16 workers; Dask
+within 15 % of the pool at the same worker count.
+"""
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import time
+from pathlib import Path
+
+import numpy as np
+
+from jsbsim_calib.calibration.steady import steady_factors, steady_stage
+from jsbsim_calib.executor import make_executor
+from jsbsim_calib.jsbsim.simulator import Simulator
+from jsbsim_calib.workflow import aircraft_data, run_dynamic, run_steady, run_trims
+
+ROOT = Path(__file__).resolve().parents[1]
+PREDICT_AT = (16, 64)
+
+
+class Timed:
+    """An executor that times its batches: the time spent in batches of more than one
+    evaluation is the part more workers can share."""
+
+    def __init__(self, executor):
+        self.executor, self.parallel_s, self.batches = executor, 0.0, 0
+
+    def __getattr__(self, name):
+        return getattr(self.executor, name)
+
+    def map(self, fn, items, key=None):
+        t0 = time.perf_counter()
+        out = self.executor.map(fn, items, key)
+        if len(items) > 1:
+            self.parallel_s += time.perf_counter() - t0
+            self.batches += 1
+        return out
+
+
+def steady(executor) -> np.ndarray:
+    """Stage 1 from neutral factors: the factors found and the costs, as one vector of bits."""
+    data = aircraft_data(ROOT, "c172")
+    with Simulator(ROOT, "c172", baseline=True) as sim:
+        main, ff = steady_stage(sim, data["poh_climb"], data["poh_cruise"], executor=executor)
+    return np.array(list(ff.final.vector(main.names + ff.names)) + [main.cost_final, ff.cost_final])
+
+
+def chain(executor) -> np.ndarray:
+    """Stages 1, 2a and 2b in a row (nothing written): the final factors as a vector."""
+    s1 = run_steady(ROOT, "c172", executor=executor)
+    s2a = run_trims(ROOT, "c172", start=steady_factors(s1.factors), executor=executor)
+    s2b = run_dynamic(ROOT, "c172", start=s2a.factors, executor=executor)
+    return np.array(list(s2b.factors.as_dict().values()))
+
+
+def run(job, kind: str, workers: int) -> tuple[float, float, np.ndarray]:
+    """Wall time, time in batches and the result of ``job`` on ``kind`` with ``workers``
+    (one worker: this process). The executor starts before the clock (a cluster's start-up
+    is not the job's)."""
+    with make_executor("serial" if workers == 1 else kind, workers) as ex:
+        timed = Timed(ex)
+        t0 = time.perf_counter()
+        out = job(timed)
+        return time.perf_counter() - t0, timed.parallel_s, out
+
+
+def amdahl(e: float, p: int) -> float:
+    return 1.0 / (e + (1.0 - e) / p)
+
+
+def karp_flatt(speedup: float, p: int) -> float:
+    return (1.0 / speedup - 1.0 / p) / (1.0 - 1.0 / p)
+
+
+def table(title: str, job, kinds: list[str], workers: list[int], serial: bool = True) -> None:
+    """One row per executor and worker count; ``serial=False`` leaves out the one-worker run
+    (no speed-ups: the bits are compared with the table's first run)."""
+    print(f"\n{title}")
+    wall1, ref = None, None
+    if serial:
+        wall1, par1, ref = run(job, "serial", 1)
+        e1 = max(0.0, 1.0 - par1 / wall1)
+        print(f"  1 worker (this process): {wall1:7.2f} s; serial fraction from this run {e1:.3f} (time outside "
+              f"batches) -> predicts " + ", ".join(f"{amdahl(e1, p):.1f}x at {p}" for p in PREDICT_AT))
+    print(f"  {'executor':<9}{'workers':>8}{'wall s':>9}{'speed-up':>10}{'efficiency':>11}{'Karp-Flatt e':>14}"
+          f"{'predicts':>22}  same bits")
+    for kind in kinds:
+        for p in [w for w in workers if w > 1]:
+            wall, _, out = run(job, kind, p)
+            ref = out if ref is None else ref
+            same = "yes" if out.shape == ref.shape and np.array_equal(out, ref) else "NO"
+            if wall1 is None:
+                print(f"  {kind:<9}{p:>8}{wall:>9.2f}{'':>10}{'':>11}{'':>14}{'':>22}  {same}")
+                continue
+            s, e = wall1 / wall, karp_flatt(wall1 / wall, p)
+            pred = ", ".join(f"{amdahl(max(e, 1e-9), q):.1f}x@{q}" for q in PREDICT_AT)
+            print(f"  {kind:<9}{p:>8}{wall:>9.2f}{s:>9.2f}x{s / p:>10.0%}{e:>14.3f}{pred:>22}  {same}")
+
+
+PROFILE_GROUPS = (   # (what, functions whose cumulative time it is), in the order printed
+    ("JSBSim trims", ("_trim_once",)),
+    ("JSBSim loads", ("_load",)),
+    ("sandbox files", ("_write_sandbox",)),
+    ("pickling", ("dumps", "loads")),
+)
+FIT_CALLBACKS = ("fun", "jac", "trials", "on_trial", "callback")    # fit.py's functions the solver calls
+
+
+def profile() -> None:
+    """Where the one-worker steady stage spends its time (cProfile: its overhead included)."""
+    pr = cProfile.Profile()
+    t0 = time.perf_counter()
+    pr.enable()
+    steady(make_executor("serial"))
+    pr.disable()
+    wall = time.perf_counter() - t0
+    st = pstats.Stats(pr).stats
+    total = max(v[3] for v in st.values())          # the outermost call's cumulative time
+    cum: dict[str, float] = {}
+    for (_, _, func), (_, _, _, ct, _) in st.items():
+        cum[func] = cum.get(func, 0.0) + ct
+    # the solver's own algebra: its time less that of the calls back into the fit
+    inner = sum(v[3] for (file, _, func), v in st.items() if file.endswith("fit.py") and func in FIT_CALLBACKS)
+    lm = cum.get("least_squares", 0.0) - inner
+    print(f"\nprofile of the steady stage on 1 worker ({wall:.1f} s under the profiler):")
+    shown = 0.0
+    for what, funcs in PROFILE_GROUPS:
+        t = sum(cum.get(f, 0.0) for f in funcs)
+        shown += t
+        print(f"  {what:<28}{t:7.2f} s  {t / total:5.1%}")
+    rest = total - shown - lm
+    print(f"  {'least-squares algebra':<28}{lm:7.2f} s  {lm / total:5.1%}")
+    print(f"  {'the rest':<28}{rest:7.2f} s  {rest / total:5.1%}   (data, residuals, bookkeeping)")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--workers", default="1,2", help="worker counts, comma-separated (default 1,2)")
+    ap.add_argument("--executors", default="process,dask", help="process and/or dask (default both)")
+    ap.add_argument("--chain", action="store_true", help="also the chain of stages 1, 2a and 2b")
+    ap.add_argument("--profile", action="store_true", help="a profile of the one-worker steady stage")
+    ap.add_argument("--no-serial", action="store_true", help="leave out the one-worker runs (no speed-ups)")
+    a = ap.parse_args()
+    workers = sorted({int(w) for w in a.workers.split(",")})
+    kinds = [k for k in a.executors.split(",") if k]
+    if a.profile:
+        profile()
+    table("C172 steady stage (stage 1 from neutral factors)", steady, kinds, workers, not a.no_serial)
+    if a.chain:
+        table("C172 chain (stages 1, 2a, 2b)", chain, kinds, workers, not a.no_serial)
+
+
+if __name__ == "__main__":
+    main()
