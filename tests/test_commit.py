@@ -5,6 +5,7 @@ Real files, real generate, real processes killed."""
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -343,8 +344,9 @@ def test_a_model_switch_set_by_hand_is_kept_and_said_so(tmp_path, recwarn):
     paths = AircraftPaths(root, "c172")
     _edit(paths.aircraft_xml, '<property value="0" persistent="true"> calibration/K_slip </property>',
           '<property value="1" persistent="true"> calibration/K_slip </property>')
-    _edit(paths.aircraft_xml, '<property value="1.018538712" persistent="true"> calibration/K_cdi </property>',
-          '<property value="1.1" persistent="true"> calibration/K_cdi </property>')
+    cdi = re.search(r'<property value="[^"]+" persistent="true"> calibration/K_cdi </property>',
+                    paths.aircraft_xml.read_text()).group(0)               # the committed value, whatever it is
+    _edit(paths.aircraft_xml, cdi, '<property value="1.1" persistent="true"> calibration/K_cdi </property>')
     declared = read_factors(paths.aircraft_xml)
     assert switches(declared)["K_slip"] == 1.0 and switches(declared)["K_cdi"] == 1.0   # the switch, cdi neutral
     stage_result = read_calibration(paths).updated({"K_slip": 1.0})

@@ -118,7 +118,7 @@ def test_main_job_rewrites_the_committed_c172_byte_for_byte(tmp_path):
     r = subprocess.run([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(root), "--quiet", "calibrate", "c172",
                         "--stage", "all", "--report-dir", str(reports)], capture_output=True, text=True,
                        env={**os.environ, **OTHER_KERNELS})
-    assert r.returncode in (0, 3), r.stderr[-3000:]          # 3: done, some targets missed (7 of 14 today)
+    assert r.returncode in (0, 3), r.stderr[-3000:]          # 3: done, some targets missed (8 of 14 today)
     fresh = json.loads(AircraftPaths(root, "c172").calibration.read_text())
     record = _committed("c172")
     changed = [str(p.relative_to(root)) for p in root.rglob("*") if p.is_file()

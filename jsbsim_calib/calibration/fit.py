@@ -246,9 +246,9 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
         """Trial points: in this process one at a time, or as one batch on the executor (each
         counted when the least-squares walk takes it into account: :func:`on_trial`)."""
         if len(xs) == 1:
-            ev = problem.evaluate(xs[0], state["warm"], state["weight"])
-        evs = [ev] if len(xs) == 1 else executor.map(
-            problem, [(xi, state["warm"], state["weight"], True) for xi in xs], key=problem.key)
+            evs = [problem.evaluate(xs[0], state["warm"], state["weight"])]
+        else:
+            evs = executor.map(problem, [(xi, state["warm"], state["weight"], True) for xi in xs], key=problem.key)
         state["trials"] = {xi.tobytes(): e for xi, e in zip(xs, evs)}
         return [e.residuals for e in evs]
 
