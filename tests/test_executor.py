@@ -1,6 +1,7 @@
-"""Independent work on other executors gives the same bits: a fit whose Jacobian columns run
-in a process pool or on a dask.distributed LocalCluster lands on exactly the factors of the
-same fit in this process; a Simulator pickles and rebuilds; a fresh load is history-free."""
+"""Independent work on other executors gives the same bits: a fit whose Jacobian columns and
+trial points run in a process pool or on a dask.distributed LocalCluster lands on exactly the
+factors of the same fit in this process; a Simulator pickles and rebuilds; a fresh load is
+history-free; propeller tables kept per factor set fly as freshly baked ones."""
 from __future__ import annotations
 
 import pickle
@@ -54,6 +55,23 @@ def test_a_fresh_load_is_history_free():
             t = sim.trim(A)
             results.append((t.alpha_deg, t.elevator_deg, t.throttle, t.rpm))
     assert results[0] == results[1] == results[2]
+
+
+def test_propeller_tables_kept_per_factor_set_fly_as_freshly_baked_ones():
+    """A propeller factor set met again flies on the tables kept for it (no re-bake) exactly as
+    a simulator that baked them afresh; a propeller change reloads (set_factors says so), any
+    other factor does not."""
+    with Simulator(REPO, "c172") as sim:
+        start = sim.factors
+        assert sim.set_factors(start.replace(K_CT_scale=start["K_CT_scale"] * 1.02)) is True
+        assert sim.set_factors(start) is True                     # the kept tables of the start
+        assert sim.set_factors(start.replace(K_Clp=0.05)) is False
+        sim.set_factors(start)
+        sim.fresh()
+        kept = sim.trim(A)
+    with Simulator(REPO, "c172") as fresh:
+        baked = fresh.trim(A)
+    assert (kept.rpm, kept.alpha_deg, kept.throttle) == (baked.rpm, baked.alpha_deg, baked.throttle)
 
 
 def test_a_simulator_pickles_as_what_it_flies():
