@@ -455,7 +455,8 @@ def cmd_validate(a) -> int:
         folds = {st: [f for f in a.fold if f in names[st]] for st in stages if set(a.fold) & set(names[st])}
     run = {"steady": validate_steady, "trims": validate_trims, "dynamic": validate_dynamic}
     kw = {} if a.max_nfev is None else {"max_nfev": a.max_nfev}
-    vals = [run[st](root, a.aircraft, folds=f, progress=say, **kw) for st, f in folds.items()]
+    pool = {"steady": {"executor": a.pool}, "trims": {"executor": a.pool}, "dynamic": {}}   # folds as independent tasks
+    vals = [run[st](root, a.aircraft, folds=f, progress=say, **kw, **pool[st]) for st, f in folds.items()]
     for v in vals:
         print(format_validation(v) + "\n")
     physics = None

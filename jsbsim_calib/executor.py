@@ -31,21 +31,31 @@ from .tempdirs import make_dir
 
 _CACHE: dict[str, Callable] = {}          # in a worker: unpickled functions by key
 _CACHE_LIMIT = 4
+_RUNNING: dict[str, int] = {}             # keys of the functions running now (nested work), by depth
 CONNECT_TIMEOUT_S = 5            # an unreachable dask scheduler fails after this, naming its address
 
 
 def _call(key: str, payload, item):
     """A task in a worker: the function ``key`` (unpickled once) applied to ``item``.
-    ``payload``: the serialized function, or the path of a file holding it."""
+    ``payload``: the serialized function, or the path of a file holding it. A function still
+    running (a task whose own work goes to the executor in this process: a validation fold's
+    fits) is never evicted."""
     fn = _CACHE.get(key)
     if fn is None:
-        if len(_CACHE) >= _CACHE_LIMIT:
-            _close(_CACHE.pop(next(iter(_CACHE))))
+        idle = [k for k in _CACHE if k not in _RUNNING]
+        if len(_CACHE) >= _CACHE_LIMIT and idle:
+            _close(_CACHE.pop(idle[0]))
         if isinstance(payload, str):
             with open(payload, "rb") as fh:
                 payload = fh.read()
         fn = _CACHE[key] = cloudpickle.loads(payload)
-    return fn(item)
+    _RUNNING[key] = _RUNNING.get(key, 0) + 1
+    try:
+        return fn(item)
+    finally:
+        _RUNNING[key] -= 1
+        if not _RUNNING[key]:
+            del _RUNNING[key]
 
 
 def _close(fn) -> None:

@@ -20,6 +20,7 @@ from jsbsim_calib.data.logs import LogLoading, log_conditions, log_dataset, log_
 from jsbsim_calib.data.schemas import Dataset
 from jsbsim_calib.errors import DataError, InputError
 from jsbsim_calib.evaluate import PointResult, evaluate_dataset, summarize
+from jsbsim_calib.executor import ProcessExecutor
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.jsbsim.condition import Condition
 from jsbsim_calib.jsbsim.product import load_aircraft_geometry
@@ -111,6 +112,21 @@ def test_stage1_folds_refit_and_report_finite_numbers():
     assert [(m.kind, m.metric, m.held_out.n, m.fit.n) for m in climb] == [("poh_climb", "roc_fpm", 6, 21)]
     assert {m.metric for m in v.folds[1].metrics} == {"rpm", "pct_power", "gph"}
     assert v.to_json()["folds"][0]["metrics"][0]["held_out"]["n"] == 6
+
+
+@pytest.mark.slow
+def test_folds_are_independent_tasks_with_the_same_bits_on_a_pool():
+    """The folds run as independent tasks (each from the stage model's warm starts): on a pool of
+    two workers they give this process's factors and errors bit for bit, in the folds' order."""
+    folds = ["climb OAT 40 C", "cruise 12,000 ft"]
+    here = validate_steady(REPO, "c172", folds=folds, max_nfev=5)
+    with ProcessExecutor(2) as pool:
+        there = validate_steady(REPO, "c172", folds=folds, max_nfev=5, executor=pool)
+    assert [f.fold.name for f in there.folds] == folds and there.control is not None
+    for a, b in zip([here.control] + here.folds, [there.control] + there.folds):
+        assert a.factors == b.factors and a.trims == b.trims
+        assert [(m.fit.rmse, m.held_out.rmse) for m in a.metrics] == [(m.fit.rmse, m.held_out.rmse) for m in b.metrics]
+    assert here.trims == there.trims
 
 
 @pytest.mark.slow

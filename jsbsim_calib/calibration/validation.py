@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import math
 import time
+import uuid
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -37,6 +38,7 @@ from ..data.flighttest import QuirkWarning
 from ..data.load import load_dataset
 from ..data.schemas import METRICS, Dataset
 from ..errors import InputError, ModelError
+from ..executor import SERIAL, Executor
 from ..evaluate import MetricSummary, PointResult, evaluate_dataset, summarize
 from ..factors import FactorSet
 from ..jsbsim.product import AircraftPaths, load_aircraft_geometry
@@ -485,21 +487,29 @@ def failed_points(data: Mapping[str, Dataset], points: Points, fold: Fold) -> li
 
 def run_validation(sim: Simulator, stage: str, data: Mapping[str, Dataset], judged: Sequence[str], start: FactorSet,
                    folds: Sequence[Fold], refit: Refit, *, max_nfev: int, control: bool = True,
-                   progress: Say | None = None) -> Validation:
-    """Every fold (and the control) refitted and judged; the simulator is left at ``start``."""
+                   progress: Say | None = None, executor: Executor = SERIAL) -> Validation:
+    """Every fold (and the control) refitted and judged, each an independent task on
+    ``executor``: it starts from ``start`` and the trim warm starts of the stage's own model,
+    whatever ran before it, so that the results are the same bits on any executor and worker
+    count. The simulator is left at ``start``."""
     say = progress or (lambda s: None)
     t0, trims0 = time.perf_counter(), sim.trims
     sim.set_factors(start)
     stage_model = evaluate_all(sim, {k: data[k] for k in judged})
-    results, ctrl = [], None
-    if control:
-        say(f"{stage}: control refit (nothing left out)")
-        ctrl = run_fold(sim, data, judged, start, Fold("none (control)", "control", {}), refit, stage_model, max_nfev)
-    for i, fold in enumerate(folds, 1):
-        say(f"{stage}: fold {i}/{len(folds)} {fold.name} ({fold.size} points left out)")
-        results.append(run_fold(sim, data, judged, start, fold, refit, stage_model, max_nfev))
+    warm = dict(sim.trim_cache)
+    runs = ([Fold("none (control)", "control", {})] if control else []) + list(folds)
+
+    def one(fold: Fold) -> FoldResult:
+        sim.trim_cache = dict(warm)
+        return run_fold(sim, data, judged, start, fold, refit, stage_model, max_nfev)
+
+    say(f"{stage}: {len(runs)} refits ({'the control and ' if control else ''}{len(folds)} folds) on "
+        f"{executor.describe()}")
+    results = executor.map(one, runs, key=uuid.uuid4().hex)
+    ctrl = results.pop(0) if control else None
+    trims = sim.trims - trims0 + sum(r.trims for r in results) + (ctrl.trims if ctrl else 0)
     return Validation(sim.name, stage, results, ctrl, in_sample_table({k: data[k] for k in judged}, stage_model),
-                      max_nfev, time.perf_counter() - t0, sim.trims - trims0)
+                      max_nfev, time.perf_counter() - t0, trims)
 
 
 def _steady_inputs(root: Path, name: str) -> tuple[dict[str, Dataset], list[Fold]]:
@@ -528,7 +538,7 @@ def fold_names(root: Path | str, name: str, stage: str) -> list[str]:
 
 def validate_steady(root: Path | str, name: str, *, folds: Sequence[str] | None = None,
                     max_nfev: int = STEADY_MAX_NFEV, control: bool = True,
-                    progress: Say | None = None) -> Validation:
+                    progress: Say | None = None, executor: Executor = SERIAL) -> Validation:
     """Stage 1 held out: POH climbs by temperature and altitude band, cruise by altitude.
 
     ``folds``: names of the folds to run (default all, :func:`climb_folds`, :func:`cruise_folds`)."""
@@ -538,7 +548,7 @@ def validate_steady(root: Path | str, name: str, *, folds: Sequence[str] | None 
     chosen = select_folds(all_folds, folds)
     with Simulator(root, name, factors=start) as sim:
         val = run_validation(sim, "steady", data, STEADY_KINDS, start, chosen, refit_steady, max_nfev=max_nfev,
-                             control=control, progress=progress)
+                             control=control, progress=progress, executor=executor)
     if _temperature_column(data["poh_climb"].frame) is None:
         val.notes.append("the POH climbs are at one temperature: no temperature folds")
     val.notes.append(f"model: stage 1 factors of aircraft/{name}/calibration.json; each fold refits the 16 "
@@ -548,7 +558,7 @@ def validate_steady(root: Path | str, name: str, *, folds: Sequence[str] | None 
 
 def validate_trims(root: Path | str, name: str, *, folds: Sequence[str] | None = None,
                    max_nfev: int = TRIMS_MAX_NFEV, control: bool = True,
-                   progress: Say | None = None) -> Validation:
+                   progress: Say | None = None, executor: Executor = SERIAL) -> Validation:
     """Stage 2a held out: snapshots and flaps-down climbs by flap setting and by test type.
 
     ``folds``: names of the folds to run (default all, :func:`trims_folds`)."""
@@ -559,7 +569,7 @@ def validate_trims(root: Path | str, name: str, *, folds: Sequence[str] | None =
     chosen = select_folds(all_folds, folds)
     with Simulator(root, name, factors=start) as sim:
         val = run_validation(sim, "trims", data, judged, start, chosen, refit_trims, max_nfev=max_nfev,
-                             control=control, progress=progress)
+                             control=control, progress=progress, executor=executor)
     left = [str(q) for k in judged for q in data[k].extra.get("quirks", [])]
     val.notes.append(f"model: stage 1 and stage 2a factors of aircraft/{name}/calibration.json (before stage 2b); "
                      f"each fold refits only the stage-2a steps whose residuals use its rows (at most {max_nfev} "
