@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass, field, replace
+from functools import partial
 from pathlib import Path
 from typing import Callable, Mapping
 
@@ -146,14 +147,22 @@ def compare_variants(root: Path | str, name: str, variants=SLIPSTREAM, *, stages
                      executor: Executor = SERIAL, max_nfev: int | None = MAX_NFEV) -> list[VariantResult]:
     """Each variant's chain, in order. Without stage 2a (``stages="steady"`` or no flight-test
     data) a variant that only adds fitted factors to its steps is the same as its switches
-    alone and is left out (a warning: the user asked for it)."""
+    alone and is left out (a warning: the user asked for it). On an executor of several workers
+    the variants are independent tasks (each chain's fits in its worker: the same bits, no
+    progress lines from inside them); on one, they run here in turn with their progress."""
     say = progress or (lambda s: None)
     trims = stages == "all" and "flight_test" in load_aircraft_geometry(Path(root), name).data_files
-    out = []
+    chosen = []
     for v in variants:
         if v.fitted and not trims:
             warnings.warn(f"variant {v.name}: left out (no stage 2a here, so nothing fits its factors)")
             continue
+        chosen.append(v)
+    if executor.workers > 1 and len(chosen) > 1:
+        say(f"variants {', '.join(v.name for v in chosen)}: independent chains on {executor.describe()}")
+        return executor.map(partial(run_variant, root, name, stages=stages, max_nfev=max_nfev), chosen)
+    out = []
+    for v in chosen:
         say(f"variant {v.name}: {v.doc}")
         out.append(run_variant(root, name, v, stages=stages, progress=say, executor=executor, max_nfev=max_nfev))
     return out

@@ -205,3 +205,18 @@ def test_the_comparison_table_has_a_column_per_variant_and_no_number_for_a_nan()
     head, rows = table(results)
     assert head == ["figure"] + [v.name for v in SLIPSTREAM] and all(len(r) == len(head) for r in rows)
     assert _cell(float("nan")) == "-" and "model variants" in format_comparison("c172", results)
+
+
+@pytest.mark.slow
+def test_variants_on_a_pool_are_independent_chains_with_the_same_bits():
+    """Two variants of the SR20's stage 1 (shortened) as independent tasks on a pool of two
+    workers end on this process's factors, bit for bit, in the variants' order."""
+    from jsbsim_calib.executor import ProcessExecutor
+    from jsbsim_calib.variants import SLIPSTREAM, compare_variants
+    chosen = [v for v in SLIPSTREAM if v.name in ("off", "theory")]
+    here = compare_variants(REPO, "sr20", chosen, stages="steady", max_nfev=3)
+    with ProcessExecutor(2) as pool:
+        there = compare_variants(REPO, "sr20", chosen, stages="steady", max_nfev=3, executor=pool)
+    assert [r.variant.name for r in there] == ["off", "theory"]
+    assert [r.factors for r in here] == [r.factors for r in there]
+    assert here[0].factors != here[1].factors
