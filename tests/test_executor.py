@@ -42,7 +42,7 @@ def _small_fit(executor):
 
         out = fit("executor test", ["K_HP", "K_CQ_scale"], sim.factors, residuals, sim=sim, max_nfev=40,
                   executor=executor)
-    return out.final.as_dict(), out.cost_final, out.nfev
+        return out.final.as_dict(), out.cost_final, out.nfev, out.trims, sim.trims     # counts too: any executor
 
 
 def test_a_fresh_load_is_history_free():

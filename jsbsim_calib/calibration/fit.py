@@ -246,14 +246,18 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
         """Trial points: in this process one at a time, or as one batch on the executor (each
         counted when the least-squares walk takes it into account: :func:`on_trial`)."""
         if len(xs) == 1:
-            evs = [problem.evaluate(xs[0], state["warm"], state["weight"])]
+            evs, here = [problem.evaluate(xs[0], state["warm"], state["weight"])], True
         else:
             evs = executor.map(problem, [(xi, state["warm"], state["weight"], True) for xi in xs], key=problem.key)
-        state["trials"] = {xi.tobytes(): e for xi, e in zip(xs, evs)}
+            here = False
+        state["trials"] = {xi.tobytes(): (e, here) for xi, e in zip(xs, evs)}
         return [e.residuals for e in evs]
 
     def on_trial(x):
-        counted(state["trials"][x.tobytes()])
+        ev, here = state["trials"][x.tobytes()]
+        counted(ev)
+        if not here:                  # the simulator's count: as if it had run here (the same on any executor)
+            sim.trims += ev.trims
 
     def callback(c: float):           # a step was accepted: its warm starts are the next evaluations'
         state["warm"] = state["last"]
