@@ -55,3 +55,17 @@ def test_close_loop_accepts_a_log():
     assert res.candidates and all(math.isfinite(c.delta_bic) for c in res.candidates)
     assert s.before["pitch_deg"].rmse > 1.0 and s.after["pitch_deg"].rmse < 0.8
     assert s.after["rpm"].rmse <= 50.0
+
+
+def test_a_segment_quantity_that_is_not_a_number_is_refused_by_segment_and_column():
+    """A damaged log can leave a segment's mean pressure altitude not a number (found by
+    hypothesis: tests/test_bad_inputs.py): the loader names the segment and the log's columns
+    instead of passing the NaN on."""
+    import pandas as pd
+    from jsbsim_calib.data.logs import SEGMENT_QUANTITIES, nonfinite_problems
+    row = {q: 1.0 for q in SEGMENT_QUANTITIES} | {"t_start_s": 1005.0, "t_end_s": 1035.5}
+    frame = pd.DataFrame([row, row | {"pressure_alt_ft": float("nan")}])
+    problems = nonfinite_problems(frame)
+    assert len(problems) == 1 and "segment 2 (t 1005-1036 s), column(s) AltB and BaroA" in problems[0].where
+    assert "not a number" in problems[0].message
+    assert nonfinite_problems(frame.iloc[:1]) == []

@@ -110,6 +110,23 @@ def channel_problems(segs) -> list[Problem]:
     return out
 
 
+SEGMENT_QUANTITIES = {"pressure_alt_ft": "AltB and BaroA", "oat_c": "OAT", "kcas": "IAS", "ktas": "TAS",
+                      "weight_lb": "FQtyL and FQtyR", "pitch_deg": "Pitch"}    # what a segment needs, from
+
+
+def nonfinite_problems(frame: pd.DataFrame) -> list[Problem]:
+    """Segments whose mean of a quantity the trims need is not a number (a damaged channel that
+    the segment criteria did not see): named with the segment and the log's columns."""
+    out = []
+    for i in range(len(frame)):
+        where = f"segment {i + 1} (t {frame['t_start_s'].iloc[i]:.0f}-{frame['t_end_s'].iloc[i]:.0f} s)"
+        for q, columns in SEGMENT_QUANTITIES.items():
+            v = frame[q].iloc[i]
+            if not (isinstance(v, numbers.Real) and math.isfinite(v)):
+                out.append(Problem(f"{where}, column(s) {columns}", f"{q} is {v!r} over the segment: not a number"))
+    return out
+
+
 def log_dataset(path: str | Path, geometry: AircraftGeometry, loading: LogLoading = LogLoading(),
                 criteria: SegmentCriteria = SegmentCriteria(), *, require_segments: bool = True) -> Dataset:
     """The quasi-steady segments of a log as a dataset of kind ``g1000``. A log without a
@@ -134,6 +151,7 @@ def log_dataset(path: str | Path, geometry: AircraftGeometry, loading: LogLoadin
     frame["rpm"] = np.where(cruise, table["rpm"], np.nan)
     frame["roc_fpm"] = np.where(cruise, np.nan, table["vs_fpm"])
     frame["pitch_deg"] = table["pitch_deg"]
+    raise_if(nonfinite_problems(frame), path, DataError)
     raise_if(temperature_problems(frame, lambda i, c: f"segment {i + 1} (t {frame['t_start_s'].iloc[i]:.0f}-"
                                                       f"{frame['t_end_s'].iloc[i]:.0f} s), column 'OAT'"),
              path, DataError)
