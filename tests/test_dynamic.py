@@ -91,6 +91,33 @@ def test_exported_script_replays_in_jsbsims_runner_frame_for_frame(tmp_path):
     assert len(csv) - start >= n - 1
 
 
+def test_inputs_played_from_python_fly_the_bits_of_the_scripts_events(sim):
+    """fly() plays a maneuver's input breakpoints from Python (JSBSim would test hundreds of
+    event conditions every frame); the script it exports holds them as events. A recorded
+    input (a breakpoint every 0.1 s, noise on it) and a step (two breakpoints at one time),
+    flown both ways, give the same bits in every frame, the last included."""
+    rng = np.random.default_rng(7)
+    t = tuple(float(x) for x in np.round(np.arange(0.0, 4.01, 0.1), 1))
+    aileron = Input("aileron_deg", t, tuple(3.0 * np.sin(np.array(t) * 2.0) + rng.normal(0, 0.2, len(t))))
+    rudder = Input("rudder_deg", (0.0, 1.0, 1.0, 4.0), (0.0, 0.0, 2.0, 2.0))
+    flown = fly(sim, Maneuver("recorded_inputs", CRUISE, 4.0, (aileron, rudder)))
+    script = sim.sandbox / "scripts" / "recorded_inputs_events.xml"
+    script.write_text(flown.script)
+    assert flown.script.count("FG_RAMP") >= len(t) + 1       # (and a breakpoint where the aileron crosses 0)
+    fdm = sim.new_exec()
+    assert fdm.load_script(str(script))
+    fdm.run_ic()
+    n_settle = int(round(SETTLE_S / flown.dt_s))
+    frames = []
+    for i in range(n_settle + len(flown.time_s)):
+        if i >= n_settle:
+            frames.append([fdm[p] * k for p, k in RECORD.values()])
+        fdm.run()
+    events = np.array(frames)
+    for j, name in enumerate(RECORD):
+        assert np.array_equal(events[:, j], flown[name]), name
+
+
 def test_pilot_holds_bank_and_altitude(sim):
     tr = fly(sim, Maneuver("turn", CRUISE, 25.0, holds=(Hold("bank", 30.0), Hold("altitude"), Hold("sideslip", 0.0))))
     last = tr.time_s > 20

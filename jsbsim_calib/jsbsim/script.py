@@ -14,7 +14,9 @@ values that differ from the file) is written with full precision (``repr``).
 
 Inputs are piecewise linear in time between breakpoints (``FG_RAMP`` events, each from one
 breakpoint to the next), triggered half a frame early so that a breakpoint time that the
-frame clock reaches with round-off still starts on its frame.
+frame clock reaches with round-off still starts on its frame. The workbench's own flights play
+those events from Python (:class:`RampPlayer`, the same bits): JSBSim tests every event's
+condition at every frame, and a recorded input has a breakpoint per sample.
 """
 from __future__ import annotations
 
@@ -75,6 +77,69 @@ def _num(x: float) -> str:
     return repr(float(x))
 
 
+@dataclass(frozen=True)
+class RampEvent:
+    """One event of a ramp: from the first frame at or after ``threshold`` (simulation time),
+    go to ``value`` in ``tc`` seconds (0: at once)."""
+
+    threshold: float
+    value: float
+    tc: float
+
+
+def ramp_events(r: Ramp, dt: float) -> list[RampEvent]:
+    """The events of a ramp, in the script's order: a step to its first value, then a ramp
+    to each next breakpoint (a step where two breakpoints share a time), each half a frame
+    early."""
+    first = RampEvent(SETTLE_S + r.time_s[0] - dt / 2, r.value[0], 0.0)
+    return [first] + [RampEvent(SETTLE_S + a - dt / 2, v, max(0.0, b - a))
+                      for a, b, v in zip(r.time_s, r.time_s[1:], r.value[1:])]
+
+
+class RampPlayer:
+    """The ramps of a script played from Python, frame by frame, as JSBSim's script plays
+    their events (``FGScript::RunScript``: the same order, the same arithmetic, so the same
+    bits). JSBSim tests every event's condition at every frame: a recorded input with a
+    breakpoint per sample is hundreds of events and costs the flight several times over;
+    played here, a frame touches only the events in progress. Call it with the simulation
+    time each ``FGFDMExec.run()`` will reach (it advances the clock before its script);
+    ``node_of(property)`` gives JSBSim's property node."""
+
+    def __init__(self, ramps: Sequence[Ramp], dt: float, end_s: float, node_of):
+        self._ramps = [(node_of(r.property), ramp_events(r, dt)) for r in ramps]
+        self._next = [0] * len(self._ramps)
+        self._active: list[list[tuple]] = [[] for _ in self._ramps]    # (event, start, original, span)
+        self._end = end_s
+
+    def __call__(self, t: float) -> None:
+        if t > self._end:                       # the script has ended: JSBSim runs no event
+            return
+        for j, (node, events) in enumerate(self._ramps):
+            k, active = self._next[j], self._active[j]
+            if not active and (k >= len(events) or t < events[k].threshold):
+                continue
+            still = [a for a in active if _play(node, a, t)]
+            while k < len(events) and t >= events[k].threshold:      # triggered now: starts from the value set so far
+                e, original = events[k], node.get_double_value()
+                k += 1
+                a = (e, t, original, e.value - original)
+                if _play(node, a, t):
+                    still.append(a)
+            self._next[j], self._active[j] = k, still
+
+
+def _play(node, active: tuple, t: float) -> bool:
+    """Set an event's value at time ``t``; True while it is still ramping (FG_RAMP: the
+    fraction of its time gone times its span from the value it started at)."""
+    e, start, original, span = active
+    gone = t - start
+    if e.tc > 0 and gone <= e.tc:
+        node.set_double_value(gone / e.tc * span + original)
+        return True
+    node.set_double_value(e.value)
+    return False
+
+
 def init_tree(spec: ScriptSpec) -> Tree:
     """The initialization file: a placeholder start the script's properties overwrite (JSBSim
     needs one), with the engine running."""
@@ -88,8 +153,12 @@ def init_tree(spec: ScriptSpec) -> Tree:
 
 
 def _event(run, name: str, time_s: float, dt: float, sets: Sequence[tuple[str, float, dict]]):
+    return _event_at(run, name, time_s - dt / 2, sets)
+
+
+def _event_at(run, name: str, threshold: float, sets: Sequence[tuple[str, float, dict]]):
     ev = sub(run, "event", name=name)
-    sub(ev, "condition", f"simulation/sim-time-sec ge {_num(time_s - dt / 2)}")
+    sub(ev, "condition", f"simulation/sim-time-sec ge {_num(threshold)}")
     for prop, v, extra in sets:
         sub(ev, "set", name=prop, value=_num(v), **extra)
     return ev
@@ -122,11 +191,9 @@ def script_tree(spec: ScriptSpec, output_file: str | None = None) -> Tree:
     for s in sorted(spec.settings, key=lambda s: s.time_s):
         _event(run, f"{s.property} at {s.time_s:g} s", SETTLE_S + s.time_s, dt, [(s.property, s.value, {})])
     for r in spec.ramps:
-        _event(run, f"{r.property} start", SETTLE_S + r.time_s[0], dt, [(r.property, r.value[0], {})])
-        for k in range(len(r.time_s) - 1):
-            span = r.time_s[k + 1] - r.time_s[k]
-            extra = {"action": "FG_RAMP", "tc": _num(span)} if span > 0 else {}
-            _event(run, f"{r.property} {k}", SETTLE_S + r.time_s[k], dt, [(r.property, r.value[k + 1], extra)])
+        for k, e in enumerate(ramp_events(r, dt)):
+            extra = {"action": "FG_RAMP", "tc": _num(e.tc)} if e.tc > 0 else {}
+            _event_at(run, f"{r.property} {'start' if k == 0 else k - 1}", e.threshold, [(r.property, e.value, extra)])
     return tree(root)
 
 

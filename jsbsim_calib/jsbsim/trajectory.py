@@ -5,7 +5,8 @@ throttle as breakpoints in time, as changes from the trim or absolute) and pilot
 (:mod:`.pilot`: hold pitch, altitude, bank, sideslip, heading or airspeed over a time
 window), mixed per axis. :func:`fly` trims the simulator's aircraft at the start, writes the
 maneuver as a JSBSim script into the simulator's sandbox (:mod:`.script`), runs it in a fresh
-FGFDMExec of that sandbox and records a :class:`Trajectory` every frame. :func:`export`
+FGFDMExec of that sandbox (the inputs' breakpoints played from Python, as the script's events
+would play them) and records a :class:`Trajectory` every frame. :func:`export`
 writes the same script for the aircraft as it stands in a JSBSim root, with an output
 directive, so that ``jsbsim --root ROOT --script S`` replays the trace frame for frame.
 
@@ -25,7 +26,7 @@ import numpy as np
 from ..errors import ModelError, TrimError
 from .condition import Condition, TrimResult
 from .pilot import AXIS_OF_LOOP, MEASURED, MODE_OF_LOOP, TARGETS
-from .script import INTEGRATORS, SETTLE_S, Ramp, ScriptSpec, Setting, init_tree, output_tree, script_tree
+from .script import INTEGRATORS, SETTLE_S, Ramp, RampPlayer, ScriptSpec, Setting, init_tree, output_tree, script_tree
 from .xml import tostring, write
 
 RATE_HZ = 60.0               # frames per second of maneuvers (the method's 60 Hz; 120 Hz moves peak rates by ~2 %)
@@ -122,9 +123,13 @@ class Trajectory:
     trim: TrimResult
     time_s: np.ndarray
     channels: dict[str, np.ndarray]
-    script: str = ""
     dt_s: float = 1.0 / RATE_HZ
     spec: ScriptSpec | None = None
+
+    @property
+    def script(self) -> str:
+        """The run script that flies it in JSBSim's runner (its inputs as events)."""
+        return tostring(script_tree(self.spec)).decode() if self.spec is not None else ""
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.channels[name]
@@ -250,8 +255,7 @@ def fly(sim, m: Maneuver, *, rate_hz: float = RATE_HZ) -> Trajectory:
     init_path = box / "aircraft" / sim.name / f"{spec.init_name}.xml"
     script_path = box / "scripts" / f"{m.name}.xml"
     write(init_tree(spec), init_path)
-    s = script_tree(spec)
-    write(s, script_path)
+    write(script_tree(replace(spec, ramps=())), script_path)     # the inputs are played from here
     fdm = sim.new_exec()
     if not fdm.load_script(str(script_path)):
         raise ModelError(f"JSBSim could not load the maneuver script {script_path}")
@@ -263,16 +267,27 @@ def fly(sim, m: Maneuver, *, rate_hz: float = RATE_HZ) -> Trajectory:
     data = np.empty((n, len(nodes)))
     time = np.empty(n)
     tnode = pm.get_node("simulation/sim-time-sec")
+    dt = fdm.get_delta_t()
+    end = SETTLE_S + spec.duration_s + 0.99 * dt       # FGScript's end: the script's plus 0.99 frame
+    inputs = RampPlayer(spec.ramps, spec.dt_s, end, lambda p: _node(pm, p, m))
     for i in range(n):
         time[i] = tnode.get_double_value()
         data[i] = [node.get_double_value() * k for node, k in nodes]
         if i < n - 1:
+            inputs(time[i] + dt)        # FGFDMExec::Run advances the clock, then plays the script
             fdm.run()
     data, time = data[n_settle:], time[n_settle:] - time[n_settle]
     if not np.all(np.isfinite(data)):
         raise ModelError(f"maneuver {m.name}: the flight produced non-finite values")
     channels = {k: data[:, j] for j, k in enumerate(RECORD)}
-    return Trajectory(m, trim, time, channels, tostring(s).decode(), 1.0 / rate_hz, spec)
+    return Trajectory(m, trim, time, channels, 1.0 / rate_hz, spec)
+
+
+def _node(pm, prop: str, m: Maneuver):
+    node = pm.get_node(prop)
+    if node is None:
+        raise ModelError(f"maneuver {m.name}: the aircraft has no property {prop} to drive")
+    return node
 
 
 def export(sim, m: Maneuver, script_dir: Path, *, rate_hz: float = RATE_HZ,
