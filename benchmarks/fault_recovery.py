@@ -25,7 +25,7 @@ import argparse
 import json
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from jsbsim_calib.calibration.closeloop_dynamic import close_loop_dynamic
@@ -107,9 +107,10 @@ def main(argv=None) -> int:
     jobs = [(fault, seed) for fault in a.faults.split(",") for seed in range(1, a.seeds + 1)]
     runs = []
     with ProcessPoolExecutor(a.jobs) as pool:          # each run is independent: one process per run
-        for r in pool.map(one_run, *zip(*jobs), [values] * len(jobs)):
-            runs.append(r)
-            print(json.dumps(r), flush=True)
+        for done in as_completed([pool.submit(one_run, fault, seed, values) for fault, seed in jobs]):
+            runs.append(done.result())
+            print(json.dumps(runs[-1]), flush=True)
+    runs.sort(key=lambda r: (r["fault"], r["seed"]))
     print("\n| fault | runs | named | named and within 10 % | jsbsim-deviations recall | median wall [s] |")
     print("|---|---:|---:|---:|---:|---:|")
     for fault in a.faults.split(","):
