@@ -92,7 +92,9 @@ def one_run(fault: str, seed: int, values) -> dict:
     err = abs((got - model_value) / change - 1.0) if got is not None and change else None
     return {"fault": fault, "seed": seed, "added": res.added, "named": first == name, "fitted": got,
             "truth": truth_value, "model": model_value, "error_of_change": err,
-            "restored": bool(first == name and err is not None and err <= 0.10), "wall_s": round(wall, 1)}
+            "restored": bool(first == name and err is not None and err <= 0.10), "wall_s": round(wall, 1),
+            "structured": [c for c, d in res.diagnosis_before.items() if d.structured],
+            "tried": [f"{c.effect}: {c.reason}" for c in res.candidates]}
 
 
 def main(argv=None) -> int:
