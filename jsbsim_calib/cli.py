@@ -324,7 +324,7 @@ def _close_loop_dynamic(a) -> int:
     if a.skip:
         raise CalibError("close-loop --flight-test: --skip reruns stage 2a for trim data, not for time histories")
     root = Path(a.root)
-    res = run_close_loop_dynamic(root, a.aircraft, a.flight_test, progress=_progress(a))
+    res = run_close_loop_dynamic(root, a.aircraft, a.flight_test, progress=_progress(a), executor=a.pool)
     print(format_result(res))
     written = None
     if not a.no_write:

@@ -26,6 +26,7 @@ from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, acts_o
                                                         effect_axis, noise_in_scales)
 from jsbsim_calib.dynamics import CHANNEL_SCALES, load_recorded_tests
 from jsbsim_calib.errors import InputError
+from jsbsim_calib.executor import ProcessExecutor
 from jsbsim_calib.jsbsim import xml
 from jsbsim_calib.jsbsim.aircraft import EFFECT_SYSTEM_PREFIX
 from jsbsim_calib.jsbsim.condition import Condition
@@ -157,6 +158,23 @@ def test_a_yaw_due_to_roll_rate_is_found_and_its_coefficient_recovered(clean, cn
     assert "yaw" in {d.axis for d in res.diagnosis_before.values() if d.structured}
     assert not res.unexplained(), [(u.metric, u.reason) for u in res.unexplained()]
     json.dumps(res.to_json(), allow_nan=False)
+
+
+@pytest.mark.slow
+def test_candidates_folds_and_refit_on_a_pool_give_the_serial_bits(clean, cn_p_records):
+    """The candidates' fits, the cross-validation folds and the refit's Jacobian run as tasks
+    (a pool of 2 here): every candidate's numbers, the factors and the errors after are the
+    bits of the serial run."""
+    tests = load_recorded_tests(cn_p_records)
+    with clean.clone() as sim:                      # the same start: no trim warm starts kept from other tests
+        serial = close_loop_dynamic(sim, tests, max_effects=1)
+    with clean.clone() as sim, ProcessExecutor(2) as pool:
+        pooled = close_loop_dynamic(sim, tests, max_effects=1, executor=pool)
+    assert pooled.added == serial.added == ["yaw_due_to_roll_rate"]
+    assert [c.as_dict() for c in pooled.candidates] == [c.as_dict() for c in serial.candidates]
+    assert pooled.factors.as_dict() == serial.factors.as_dict()
+    after = lambda r: {a: {c: e.as_dict() for c, e in ch.items()} for a, ch in r.errors("after").items()}
+    assert after(pooled) == after(serial)
 
 
 # --------------------------------------------------------------------------- (b) the null case

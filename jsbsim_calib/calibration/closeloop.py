@@ -45,6 +45,7 @@ import numpy as np
 
 from ..data.schemas import METRICS, Dataset
 from ..evaluate import KINDS, Evaluation, Summary, evaluate_dataset, summarize, summary_dict
+from ..executor import SERIAL
 from ..factors import FactorSet, levers
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.xml import Tree
@@ -149,6 +150,7 @@ class TrimEvidence:
     metrics' axes (section "synthesis")."""
 
     kind = "trims"
+    executor = SERIAL          # its candidates run here: their synthesis keeps state between rounds
 
     def __init__(self, ds: Dataset, conds, lib: dict[str, Effect], *, refit_companions: bool = True,
                  synthesize: bool = True, say=lambda s: None):

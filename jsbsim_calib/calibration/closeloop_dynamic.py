@@ -59,6 +59,7 @@ from ..data.flighttest import load_control_travel
 from ..data.timehistory import CHANNELS
 from ..dynamics import AXIS_CHANNELS, CHANNEL_SCALES, FAIL_RESIDUAL, RecordedTest, load_recorded_tests
 from ..errors import CalibError, InputError, Problem
+from ..executor import SERIAL, Executor
 from ..factors import FactorSet, step_factors
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.trajectory import fly
@@ -617,10 +618,14 @@ class TimeHistoryEvidence:
 
     kind = "time histories"
 
-    def __init__(self, tests: Sequence[RecordedTest], lib: dict[str, Effect]):
-        self.tests, self.lib = list(tests), lib
+    def __init__(self, tests: Sequence[RecordedTest], lib: dict[str, Effect], executor: Executor = SERIAL):
+        self.tests, self.lib, self.executor = list(tests), lib, executor
         self.screens: list[Screen] = []
         self._terms: list[Change] = []
+
+    def __getstate__(self) -> dict:
+        """Pickled (a task's copy): the evidence without its executor (a task runs its own work here)."""
+        return {**self.__dict__, "executor": SERIAL}
 
     def rows(self, sim: Simulator, part) -> Rows:
         r, v, ch = _stack(fly_all(sim, [self.tests[i] for i in part]))
@@ -673,16 +678,18 @@ class TimeHistoryEvidence:
 
 
 def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects: Mapping[str, Effect] | None = None,
-                       max_effects: int = MAX_EFFECTS,
-                       progress: Callable[[str], None] | None = None) -> CloseLoopDynamicResult:
+                       max_effects: int = MAX_EFFECTS, progress: Callable[[str], None] | None = None,
+                       executor: Executor = SERIAL) -> CloseLoopDynamicResult:
     """Close the loop on recorded maneuvers (see the module doc). ``sim`` is left unchanged; the
-    result holds the aircraft with the added effects (its file and factors)."""
+    result holds the aircraft with the added effects (its file and factors). ``executor``: where
+    the candidates' fits, the cross-validation folds and the refits' Jacobians run (the same
+    bits on any)."""
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     tests = list(tests)
     check_tests(tests)
     tests = replay_weights(sim, tests)
-    ev = TimeHistoryEvidence(tests, default_effects() if effects is None else dict(effects))
+    ev = TimeHistoryEvidence(tests, default_effects() if effects is None else dict(effects), executor)
     before = fly_all(sim, tests)
     diag0 = diagnose_responses(before)
     for c, d in diag0.items():
@@ -696,12 +703,13 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
 
 # --------------------------------------------------------------------------- files
 def run_close_loop_dynamic(root: Path | str, name: str, flight_test, *,
-                           progress: Callable[[str], None] | None = None) -> CloseLoopDynamicResult:
+                           progress: Callable[[str], None] | None = None,
+                           executor: Executor = SERIAL) -> CloseLoopDynamicResult:
     """Close the loop on an aircraft with time histories (directories and/or CSV files of
     format 1; cockpit controls through the aircraft's control-travel table)."""
     with Simulator(Path(root), name) as sim:
         f = sim.geometry.control_travel_file
         tests = load_recorded_tests(flight_test, load_control_travel(f) if f else None)
-        res = close_loop_dynamic(sim, tests, progress=progress)
+        res = close_loop_dynamic(sim, tests, progress=progress, executor=executor)
     res.notes.append(f"model: {name}; {len(tests)} time histories: " + ", ".join(f"{t.id} ({t.kind})" for t in tests))
     return res

@@ -24,6 +24,7 @@ import math
 import time
 from contextlib import ExitStack
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Callable, Mapping, Protocol, Sequence
 
@@ -31,6 +32,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from ..errors import CalibError
+from ..executor import Executor
 from ..factors import Factor, FactorSet
 from ..jsbsim.product import AircraftPaths, write_derived
 from ..jsbsim.simulator import Simulator
@@ -100,6 +102,7 @@ class Evidence(Protocol):
     """An adapter of one kind of evidence (module doc)."""
 
     kind: str
+    executor: Executor                                               # where candidates and folds run
 
     def rows(self, sim: Simulator, part: Sequence[int]) -> Rows: ...
     def diagnose(self, sim: Simulator) -> Mapping[str, Diagnosis]: ...
@@ -339,39 +342,50 @@ def score(ev: Evidence, start: Round, ch: Change, fitted: Fitted, trial: Simulat
     return c
 
 
+def _try(ev: Evidence, start: Round, current: Simulator, factors: FactorSet, ch: Change) -> Candidate | str:
+    """A change fitted alone on the fitted part and scored; the error where it breaks the
+    model. A task: it reads the evidence and the model, and changes neither."""
+    try:
+        trial, fitted = fit_change(ev, current, ch, factors, ev.parts()[0])
+    except CalibError as exc:
+        return f"fit failed ({exc})"
+    with trial:
+        c = score(ev, start, ch, fitted, trial)
+    c.reason = "; ".join([c.reason] * bool(c.reason) + ev.judge(ch, c, current, factors))
+    return c
+
+
 def try_changes(ev: Evidence, start: Round, current: Simulator, changes: Sequence[Change], factors: FactorSet,
                 say) -> list[Candidate]:
-    """Each change fitted alone on the fitted part and scored; one that breaks the model is
-    rejected with the error named."""
-    fitp, _ = ev.parts()
+    """Each change fitted alone on the fitted part and scored, as independent tasks on the
+    evidence's executor (each fit starts from a fresh copy of the model: the same bits on
+    any executor); one that breaks the model is rejected with the error named."""
     tried = []
-    for ch in changes:
-        try:
-            trial, fitted = fit_change(ev, current, ch, factors, fitp)
-        except CalibError as exc:
-            say(f"round {start.number}: {ch.name}: fit failed ({exc})")
+    for ch, c in zip(changes, ev.executor.map(partial(_try, ev, start, current, factors), list(changes))):
+        if isinstance(c, str):
+            say(f"round {start.number}: {ch.name}: {c}")
             continue
-        with trial:
-            c = score(ev, start, ch, fitted, trial)
-        c.reason = "; ".join([c.reason] * bool(c.reason) + ev.judge(ch, c, current, factors))
         tried.append(c)
         say(f"round {start.number}: {ch.name:34s} BIC {c.delta_bic:+10.1f}  explains {100 * c.share:5.0f} %  "
             f"{'passes the fit tests' if not c.reason else 'rejected: ' + c.reason}")
     return tried
 
 
+def _fold(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet, fold) -> float:
+    """A fold's held-out residual sum of squares, the change fitted on the rest (a task)."""
+    train, test = fold
+    trial, _ = fit_change(ev, current, ch, factors, train)
+    with trial:
+        return ev.rows(trial, test).rss()
+
+
 def cross_validate(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet) -> float:
     """Residual sum of squares of every fold predicted by a fit of the change that did not see
-    it (the evidence's folds); NaN with fewer than two folds."""
+    it (the evidence's folds, independent tasks on its executor); NaN with fewer than two folds."""
     folds = ev.folds()
     if len(folds) < 2:
         return math.nan
-    total = 0.0
-    for train, test in folds:
-        trial, _ = fit_change(ev, current, ch, factors, train)
-        with trial:
-            total += ev.rows(trial, test).rss()
-    return total
+    return sum(ev.executor.map(partial(_fold, ev, current, ch, factors), folds), 0.0)
 
 
 def best_out_of_sample(ev: Evidence, tried: list[Candidate], current: Simulator, changes: Mapping[str, Change],
@@ -421,7 +435,8 @@ def refit(ev: Evidence, rnd: int, current: Simulator, added: list[Change], facto
     opts = ev.fit_options("refit")
     if "prior_center" in opts:
         opts = {**opts, "prior_center": factors}
-    return fit(f"refit after {added[-1].name}", names, factors, _residuals(ev, current, fitp), sim=current, **opts)
+    return fit(f"refit after {added[-1].name}", names, factors, _residuals(ev, current, fitp), sim=current,
+               executor=ev.executor, **opts)
 
 
 # --------------------------------------------------------------------------- the loop
