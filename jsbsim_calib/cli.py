@@ -51,9 +51,9 @@ elif __name__ == "__mp_main__":
 from . import __version__  # noqa: E402  (after the SIGINT handler: imports take seconds)
 from .calibration.loop import write_aircraft  # noqa: E402
 from .calibration.steady import steady_factors
-from .commit import new_run
-from .errors import CalibError, InputError, Problem
-from .executor import make_executor
+from .core.commit import new_run
+from .core.errors import CalibError, InputError, Problem
+from .core.executor import make_executor
 from .fleet import evaluate_fleet, format_fleet, log_files
 from .evaluate import evaluate_dataset
 from .generate import generate

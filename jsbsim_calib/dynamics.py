@@ -19,9 +19,9 @@ from .data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_
                                  DynamicTest)
 from .data.flighttest import ControlAxis, to_jsbsim_sign
 from .data.timehistory import SURFACE_OF, TimeHistory, load_time_histories, maneuver_from_time_history
-from .errors import CalibError
+from .core.errors import CalibError
 from .evaluate import MetricSummary, Summary
-from .executor import SERIAL, Executor
+from .core.executor import SERIAL, Executor
 from .jsbsim.simulator import Simulator
 from .jsbsim.trajectory import RATE_HZ, Trajectory, fly
 

@@ -24,7 +24,7 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from .errors import CalibError
+from .core.errors import CalibError
 
 
 @dataclass(frozen=True)

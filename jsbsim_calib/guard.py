@@ -7,7 +7,7 @@ writer of the same folder is refused at once, naming them (it would otherwise ov
 result the first was told was written); a lock whose process is gone is taken over.
 
 Interrupted (Ctrl-C), a command says in one line what the aircraft holds: unchanged (a write
-half done rolled back by :func:`jsbsim_calib.commit.recover`), or the new product (its write
+half done rolled back by :func:`jsbsim_calib.core.commit.recover`), or the new product (its write
 had been decided); :func:`interrupted_message`.
 """
 from __future__ import annotations
@@ -21,8 +21,8 @@ import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
-from .commit import alive
-from .errors import CalibError
+from .core.commit import alive
+from .core.errors import CalibError
 from .jsbsim.product import AircraftPaths, recover_product
 
 LOCK = ".lock"

@@ -26,7 +26,7 @@ from .data.part60 import (CATALOGUE, CATALOGUE_BY_ID, ENGINE_STEP_S, FAIL, NA, P
                           load_static_cases, snapshot_values)
 from .data.timehistory import load_time_histories
 from .dynamics import fly_test
-from .errors import CalibError, DataError, Problem
+from .core.errors import CalibError, DataError, Problem
 from .jsbsim.condition import Condition, TrimResult
 from .jsbsim.simulator import Simulator
 from .jsbsim.trajectory import Trajectory, fly

@@ -34,7 +34,7 @@ from .jsbsim.product import AircraftPaths, propeller_tables
 from .jsbsim.simulator import Simulator
 from .physics.atmosphere import isa_temperature
 from .physics.propeller import PropellerTables
-from .units import FT, KT
+from .core.units import FT, KT
 
 WEIGHT_STEP_LB = 50.0            # central difference of the climb rate in weight
 POLAR_ALT_FT = 5000.0            # drag polar: level flight here, ISA, flaps up

@@ -2,7 +2,7 @@
 and the folders a command will write (a fit must not end, after minutes, on a folder it
 cannot write, nor write the aircraft and then fail on its report).
 
-Each check returns :class:`~jsbsim_calib.errors.Problem` s naming the option; the command
+Each check returns :class:`~jsbsim_calib.core.errors.Problem` s naming the option; the command
 line reports them all at once (``cli._run``).
 """
 from __future__ import annotations
@@ -11,7 +11,7 @@ import uuid
 from pathlib import Path
 
 from .calibration.trims import TRIM_STEPS
-from .errors import Problem
+from .core.errors import Problem
 
 # (command, option given, option given): the second silently overrides or ignores the first
 CONTRADICTIONS = (

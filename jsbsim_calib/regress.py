@@ -24,7 +24,7 @@ from typing import Callable, Mapping, Sequence
 from . import __version__
 from .data.load import load_dataset
 from .data.schemas import METRICS
-from .errors import DataError, InputError, Problem
+from .core.errors import DataError, InputError, Problem
 from .evaluate import KINDS, evaluate_dataset
 from .jsbsim.simulator import Simulator
 

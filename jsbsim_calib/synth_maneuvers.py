@@ -34,7 +34,7 @@ yaw or speed; one loop per axis, several windows allowed) hold the trimmed value
 or the trimmed value plus an ``offset``.
 
 Every plan is validated before anything flies: an unknown key, a missing key or a bad value
-is an :class:`~jsbsim_calib.errors.InputError` naming the plan file, the maneuver and the key.
+is an :class:`~jsbsim_calib.core.errors.InputError` naming the plan file, the maneuver and the key.
 """
 from __future__ import annotations
 
@@ -55,7 +55,7 @@ from .data.flighttest import load_control_travel, to_jsbsim_sign
 from .data.timehistory import (AXIS_CHANNELS, CHANNELS, MIXTURES, PILOT_AXES, Configuration, SensorError, pilot_windows,
                                TimeHistory, TimeHistoryMeta, load_time_history,
                                trajectory_to_time_history, write_time_history)
-from .errors import InputError, Problem
+from .core.errors import InputError, Problem
 from .jsbsim.condition import Condition
 from .jsbsim.pilot import AXIS_OF_LOOP
 from .jsbsim.trajectory import RECORD, Hold, Input, Maneuver, fly

@@ -17,7 +17,7 @@ from typing import Mapping, Sequence
 
 from .calibration.effects import library
 from .calibration.terms import AXES, REGRESSORS, axis as axis_record
-from .errors import ModelError
+from .core.errors import ModelError
 from .jsbsim.simulator import Simulator
 from .jsbsim.xml import Tree, comment, fmt, function, parse, read, write
 from .synth import synthesize, write_csv

@@ -36,7 +36,7 @@ from .data.flighttest import to_data_sign
 from .data.part60 import INPUT_CHANNEL, METRIC_CHANNEL, NA, MetricVerdict, Part60Test, catalogue_test, judge
 from .data.timehistory import TimeHistory, maneuver_from_time_history
 from .dynamics import peak_rate, steady_roll_rate
-from .errors import CalibError
+from .core.errors import CalibError
 from .jsbsim.trajectory import RATE_HZ, Hold, Maneuver, Trajectory, fly
 
 CHANNELS = ("pressure_alt_ft", "kcas", "ktas", "vs_fpm", "pitch_deg", "roll_deg", "heading_deg", "p_deg_s",

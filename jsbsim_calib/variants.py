@@ -21,9 +21,9 @@ import numpy as np
 from .calibration.fit import MAX_NFEV
 from .calibration.steady import steady_factors
 from .calibration.trims import TRIM_STEPS
-from .errors import ModelError
+from .core.errors import ModelError
 from .evaluate import Evaluation, summary_dict
-from .executor import SERIAL, Executor
+from .core.executor import SERIAL, Executor
 from .factors import SWITCHES, FactorSet
 from .jsbsim.product import load_aircraft_geometry
 from .workflow import run_dynamic, run_steady, run_trims

@@ -22,7 +22,7 @@ import numpy as np
 
 from .data.logs import log_conditions, log_value
 from .data.schemas import Dataset
-from .errors import DataError
+from .core.errors import DataError
 from .jsbsim.condition import Condition
 from .jsbsim.simulator import Simulator
 

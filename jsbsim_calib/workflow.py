@@ -28,8 +28,8 @@ from .data.flighttest import QuirkWarning
 from .data.load import load_dataset
 from .data.schemas import Dataset
 from .dynamics import DynamicEvaluation, evaluate_dynamic
-from .errors import InputError, ModelError, Problem
-from .executor import SERIAL, Executor
+from .core.errors import InputError, ModelError, Problem
+from .core.executor import SERIAL, Executor
 from .evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
 from .factors import FactorSet, switches
 from .jsbsim.probes import AeroCurves, aero_curves

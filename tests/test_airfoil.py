@@ -21,7 +21,7 @@ from jsbsim_calib.physics.airfoil import (
     viterna_extend,
     write_airfoil_csv,
 )
-from jsbsim_calib.errors import DataError, GeometryError
+from jsbsim_calib.core.errors import DataError, GeometryError
 
 STORED = sorted(STORED_AIRFOILS)
 

@@ -26,7 +26,7 @@ from jsbsim_calib.data.dynamic_tests import DynamicMetric, load_dynamic_tests, p
 from jsbsim_calib.data.flighttest import load_control_travel
 from jsbsim_calib.dynamics import MetricResult, TestResult, evaluate_dynamic, peak_rate, phugoid, recorded, \
     steady_roll_rate
-from jsbsim_calib.errors import DataError
+from jsbsim_calib.core.errors import DataError
 from jsbsim_calib.jsbsim.aircraft import set_factor_values
 from jsbsim_calib.jsbsim.condition import Condition
 from jsbsim_calib.jsbsim.script import SETTLE_S

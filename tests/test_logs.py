@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from jsbsim_calib.data.load import load_dataset
-from jsbsim_calib.errors import DataError
+from jsbsim_calib.core.errors import DataError
 from jsbsim_calib.workflow import run_close_loop
 
 REPO = Path(__file__).resolve().parents[1]

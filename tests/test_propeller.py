@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jsbsim_calib.errors import GeometryError, InputError
+from jsbsim_calib.core.errors import GeometryError, InputError
 from jsbsim_calib.physics.propeller import (
     Blade,
     BEMPoint,
@@ -26,7 +26,7 @@ from jsbsim_calib.physics.propeller import (
     helical_blade,
     propeller_tables,
 )
-from jsbsim_calib.units import IN
+from jsbsim_calib.core.units import IN
 
 REPO = Path(__file__).resolve().parents[1]
 

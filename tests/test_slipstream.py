@@ -211,7 +211,7 @@ def test_the_comparison_table_has_a_column_per_variant_and_no_number_for_a_nan()
 def test_variants_on_a_pool_are_independent_chains_with_the_same_bits():
     """Two variants of the SR20's stage 1 (shortened) as independent tasks on a pool of two
     workers end on this process's factors, bit for bit, in the variants' order."""
-    from jsbsim_calib.executor import ProcessExecutor
+    from jsbsim_calib.core.executor import ProcessExecutor
     from jsbsim_calib.variants import SLIPSTREAM, compare_variants
     chosen = [v for v in SLIPSTREAM if v.name in ("off", "theory")]
     here = compare_variants(REPO, "sr20", chosen, stages="steady", max_nfev=3)

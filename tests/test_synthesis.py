@@ -24,7 +24,7 @@ from jsbsim_calib.calibration.closeloop import close_loop
 from jsbsim_calib.calibration.terms import AXES, INTERPRETATIONS, LONGITUDINAL, REGRESSORS, axes_for
 from jsbsim_calib.data.flighttest import QuirkWarning
 from jsbsim_calib.data.load import load_dataset
-from jsbsim_calib.errors import ModelError
+from jsbsim_calib.core.errors import ModelError
 from jsbsim_calib.jsbsim.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.xml import read

@@ -18,9 +18,9 @@ from jsbsim_calib.calibration.validation import (FLAG_RATIO, ErrorStat, FoldMetr
                                                  validate_steady, validate_trims)
 from jsbsim_calib.data.logs import LogLoading, log_conditions, log_dataset, log_value
 from jsbsim_calib.data.schemas import Dataset
-from jsbsim_calib.errors import DataError, InputError
+from jsbsim_calib.core.errors import DataError, InputError
 from jsbsim_calib.evaluate import PointResult, evaluate_dataset, summarize
-from jsbsim_calib.executor import ProcessExecutor
+from jsbsim_calib.core.executor import ProcessExecutor
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.jsbsim.condition import Condition
 from jsbsim_calib.jsbsim.product import load_aircraft_geometry

@@ -58,7 +58,7 @@ from scipy import stats
 from ..data.flighttest import load_control_travel
 from ..data.timehistory import CHANNELS
 from ..dynamics import AXIS_CHANNELS, CHANNEL_SCALES, FAIL_RESIDUAL, RecordedTest, load_recorded_tests
-from ..errors import CalibError, InputError, Problem
+from ..core.errors import CalibError, InputError, Problem
 from ..factors import FactorSet, step_factors
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.trajectory import fly

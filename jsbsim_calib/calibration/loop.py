@@ -30,7 +30,7 @@ from typing import Callable, Mapping, Protocol, Sequence
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from ..errors import CalibError
+from ..core.errors import CalibError
 from ..factors import Factor, FactorSet
 from ..jsbsim.product import AircraftPaths, write_derived
 from ..jsbsim.simulator import Simulator

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, ModelError, Problem
+from ..core.errors import DataError, ModelError, Problem
 from ..jsbsim.condition import Condition
 from ..jsbsim.trajectory import Input, Maneuver
 from ..physics.geometry import AircraftGeometry

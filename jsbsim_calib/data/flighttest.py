@@ -45,7 +45,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, Problem
+from ..core.errors import DataError, Problem
 from ..jsbsim.condition import Condition, TrimResult
 from .schemas import Column, Dataset, Schema, duplicate_rows, read_csv_checked, reference_columns, validate_frame
 

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, Problem
+from ..core.errors import DataError, Problem
 from ..jsbsim.condition import Condition
 from ..jsbsim.trajectory import Input, Maneuver
 from .dynamic_tests import RESULT_COLUMNS, read_results

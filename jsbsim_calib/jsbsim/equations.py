@@ -19,7 +19,7 @@ from typing import Union
 from ..physics.aero.model import AeroModel, Table
 from ..physics.engine import PistonParams
 from ..physics.geometry import AircraftGeometry
-from ..units import FT
+from ..core.units import FT
 
 HP_FTLBF_S = 550.0            # [ft lbf/s per hp]
 

@@ -9,12 +9,12 @@ from typing import Mapping
 
 import numpy as np
 
-from ..errors import AircraftFileError, Problem
+from ..core.errors import AircraftFileError, Problem
 from ..factors import FactorSet
 from ..physics.engine import MIXTURE_FAR, PistonParams, mixture_efficiency
 from ..physics.geometry import AircraftGeometry, PropellerSpec
 from ..physics.propeller import PropellerTables, apply_factors
-from ..units import FT, IN, SLUG
+from ..core.units import FT, IN, SLUG
 from .xml import FACTOR_DIGITS, Tree, comment, comments, data_table, decimals_for, element, fmt, fmt_fixed, read, sub, tree
 
 # breakpoints of the baked JSBSim tables: finer than the BEM grid, so that JSBSim's linear

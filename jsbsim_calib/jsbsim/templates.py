@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..physics.atmosphere import density, isa_pressure, isa_temperature
 from ..physics.geometry import AircraftGeometry, PropellerSpec
 from ..physics.propeller import PropellerTables, blade_angle_absorbing
-from ..units import FT, KT
+from ..core.units import FT, KT
 
 CRUISE_ALTITUDE_FT = 5500.0
 CRUISE_KTAS = 110.0

@@ -22,7 +22,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..errors import ModelError, TrimError
+from ..core.errors import ModelError, TrimError
 from .condition import Condition, TrimResult
 from .pilot import AXIS_OF_LOOP, MEASURED, MODE_OF_LOOP, TARGETS
 from .script import INTEGRATORS, SETTLE_S, Ramp, ScriptSpec, Setting, init_tree, output_tree, script_tree

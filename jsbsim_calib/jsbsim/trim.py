@@ -24,12 +24,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import root
 
-from .. import numerics
-from ..errors import TrimError
+from ..core import numerics
+from ..core.errors import TrimError
 from ..physics.atmosphere import isa_pressure, isa_temperature
 from ..physics.engine import poh_mixture
 from ..physics.geometry import AircraftGeometry
-from ..units import FT, G0, HP, KT, LAPSE, T0
+from ..core.units import FT, G0, HP, KT, LAPSE, T0
 from .condition import Condition, TrimResult
 
 G_FT = G0 / FT

@@ -83,7 +83,7 @@ from typing import Callable, Mapping, Protocol, Sequence, runtime_checkable
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from ..errors import GeometryError, Problem, raise_if
+from ..core.errors import GeometryError, Problem, raise_if
 from ..factors import REGISTRY, FactorError
 
 __all__ = [
