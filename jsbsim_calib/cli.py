@@ -51,19 +51,20 @@ elif __name__ == "__mp_main__":
 from . import __version__  # noqa: E402  (after the SIGINT handler: imports take seconds)
 from .calibration.loop import write_aircraft  # noqa: E402
 from .calibration.steady import steady_factors
+from .calibration.trims import TRIM_STEPS
 from .core.commit import new_run
 from .core.errors import CalibError, InputError, Problem
 from .core.executor import make_executor
 from .fleet import evaluate_fleet, format_fleet, log_files
 from .evaluate import evaluate_dataset
 from .generate import generate
-from .guard import command_guard, interrupted_message
+from .core.guard import command_guard, interrupted_message
 from .jsbsim.aircraft import read_factors
 from .jsbsim.probes import report
-from .jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration, write_calibrated
+from .jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration, recover_product, write_calibrated
 from .jsbsim.simulator import Simulator
 from .physics.airfoil import regenerate
-from .preflight import command_problems
+from .core.preflight import command_problems
 from .report.markdown import (write_close_loop_report, write_dynamic_report, write_evaluation_report, write_log_report,
                               write_steady_report, write_trims_report)
 from .report.progress import PlanStep, Progress, Tee
@@ -826,12 +827,13 @@ def path_problems(a) -> list[Problem]:
 def _run(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise InputError("command line", Problem("--workers", f"{args.workers}: give at least 1"))
-    problems = path_problems(args) + command_problems(args)
+    problems = path_problems(args) + command_problems(args, [st.name for st in TRIM_STEPS])
     if problems:
         raise InputError("command line", problems)
     finished = False
     try:
-        with command_guard(args), make_executor(args.executor, args.workers, args.scheduler) as args.pool:
+        with command_guard(args, AircraftPaths, recover_product), \
+                make_executor(args.executor, args.workers, args.scheduler) as args.pool:
             code = args.func(args)
         finished = True
         return code
@@ -872,7 +874,7 @@ def _main(args) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(interrupted_message(args), file=sys.stderr)
+        print(interrupted_message(args, AircraftPaths, recover_product), file=sys.stderr)
         return 130
     except OSError as exc:
         if exc.filename is None:           # not a file the user named or the workbench writes: a bug
