@@ -34,7 +34,7 @@ import numpy as np
 from .. import __version__
 from ..core.commit import commit, recover
 from ..core.errors import AircraftFileError, ModelError, Problem
-from ..factors import REGISTRY, FactorError, FactorSet
+from ..factors import REGISTRY, FactorError, FactorSet, propeller_factor_values
 from ..physics.airfoil import AIRFOIL_DIR
 from ..physics.geometry import AircraftGeometry, load_geometry
 from ..physics.propeller import PropellerTables, apply_factors
@@ -230,7 +230,7 @@ def parse_bem_csv(text: str, source: str = "propeller_bem.csv") -> PropellerTabl
 
 def propeller_tables(paths: AircraftPaths, factors: FactorSet) -> PropellerTables:
     """The aircraft's propeller tables with the propeller factors of ``factors`` (BEM breakpoints)."""
-    return apply_factors(read_bem_csv(paths.propeller_bem), factors.propeller())
+    return apply_factors(read_bem_csv(paths.propeller_bem), propeller_factor_values(factors.propeller()))
 
 
 # --------------------------------------------------------------------------- writing an aircraft
