@@ -23,7 +23,7 @@ from pathlib import Path
 from jsbsim_calib.calibration.steady import steady_factors
 from jsbsim_calib.core.executor import SERIAL, ProcessExecutor
 from jsbsim_calib.fleet import evaluate_fleet
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.script import SETTLE_S
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Input, Maneuver, fly

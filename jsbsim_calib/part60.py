@@ -27,7 +27,7 @@ from .data.part60 import (CATALOGUE, CATALOGUE_BY_ID, ENGINE_STEP_S, FAIL, NA, P
 from .data.timehistory import load_time_histories
 from .dynamics import fly_test
 from .core.errors import CalibError, DataError, Problem
-from .jsbsim.condition import Condition, TrimResult
+from .flight.condition import Condition, TrimResult
 from .jsbsim.simulator import Simulator
 from .jsbsim.trajectory import Trajectory, fly
 from .timehistory_compare import (ChannelError, TimeHistoryComparison, band_metric, compare_time_history,

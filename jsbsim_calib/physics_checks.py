@@ -28,7 +28,7 @@ import numpy as np
 from .data.schemas import Dataset
 from .evaluate import KINDS
 from .factors import FactorSet
-from .jsbsim.condition import Condition, TrimResult
+from .flight.condition import Condition, TrimResult
 from .jsbsim.probes import AeroReading
 from .jsbsim.product import AircraftPaths, propeller_tables
 from .jsbsim.simulator import Simulator

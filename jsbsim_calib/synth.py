@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from .physics.atmosphere import isa_temperature_c, ktas_from_kcas
-from .jsbsim.condition import Condition, TrimResult
+from .flight.condition import Condition, TrimResult
 from .jsbsim.simulator import Simulator
 from .data.flighttest import (CONTROL_COLUMNS, SURFACE_METRICS, ControlAxis, load_control_travel, snapshot_value)
 

@@ -56,7 +56,7 @@ from .data.timehistory import (AXIS_CHANNELS, CHANNELS, MIXTURES, PILOT_AXES, Co
                                TimeHistory, TimeHistoryMeta, load_time_history,
                                trajectory_to_time_history, write_time_history)
 from .core.errors import InputError, Problem
-from .jsbsim.condition import Condition
+from .flight.condition import Condition
 from .jsbsim.pilot import AXIS_OF_LOOP
 from .jsbsim.trajectory import RECORD, Hold, Input, Maneuver, fly
 

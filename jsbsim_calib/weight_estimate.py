@@ -23,7 +23,7 @@ import numpy as np
 from .data.logs import log_conditions, log_value
 from .data.schemas import Dataset
 from .core.errors import DataError
-from .jsbsim.condition import Condition
+from .flight.condition import Condition
 from .jsbsim.simulator import Simulator
 
 METHODS = {"rpm": "level-flight RPM (power required against weight)",

@@ -23,7 +23,7 @@ from jsbsim_calib.calibration.closeloop import close_loop
 from jsbsim_calib.calibration.loop import write_aircraft
 from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.calibration.effects import library
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import QuirkWarning
 from jsbsim_calib.synth import synthesize, write_csv

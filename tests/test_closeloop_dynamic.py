@@ -28,7 +28,7 @@ from jsbsim_calib.dynamics import CHANNEL_SCALES, load_recorded_tests
 from jsbsim_calib.core.errors import InputError
 from jsbsim_calib.jsbsim import xml
 from jsbsim_calib.jsbsim.aircraft import EFFECT_SYSTEM_PREFIX
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Input, Maneuver, fly
 from jsbsim_calib.synth_maneuvers import NOISE, load_plan, synthesize_maneuvers

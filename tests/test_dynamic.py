@@ -28,7 +28,7 @@ from jsbsim_calib.dynamics import MetricResult, TestResult, evaluate_dynamic, pe
     steady_roll_rate
 from jsbsim_calib.core.errors import DataError
 from jsbsim_calib.jsbsim.aircraft import set_factor_values
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.script import SETTLE_S
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import RECORD, Hold, Input, Maneuver, export, fly

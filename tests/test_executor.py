@@ -17,7 +17,7 @@ from jsbsim_calib.calibration.points import PointSet, point_residuals
 from jsbsim_calib.dynamics import evaluate_dynamic
 from jsbsim_calib.core.executor import SERIAL, DaskExecutor, ProcessExecutor, make_executor
 from jsbsim_calib.core.errors import CalibError
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.workflow import aircraft_data, dynamic_tests
 

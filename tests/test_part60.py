@@ -17,7 +17,7 @@ from jsbsim_calib.data.part60 import (CATALOGUE, FAIL, NA, PASS, Tolerance, cata
                                       load_static_cases)
 from jsbsim_calib.data.timehistory import (Configuration, SensorError, TimeHistoryMeta,
                                            trajectory_to_time_history, write_time_history)
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Hold, Input, Maneuver, fly
 from jsbsim_calib.part60 import SummaryData, evaluate_part60, load_part60_inputs, objective_verdict

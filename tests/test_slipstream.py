@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from jsbsim_calib.factors import FactorSet
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.physics import slipstream as ss
 from jsbsim_calib.physics.aero.model import slipstream_geometry

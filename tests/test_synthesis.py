@@ -25,7 +25,7 @@ from jsbsim_calib.calibration.terms import AXES, INTERPRETATIONS, LONGITUDINAL, 
 from jsbsim_calib.data.flighttest import QuirkWarning
 from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.core.errors import ModelError
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.xml import read
 from jsbsim_calib.report.markdown import write_close_loop_report

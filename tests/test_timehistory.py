@@ -14,7 +14,7 @@ from jsbsim_calib.data.timehistory import (CHANNELS, Configuration, TimeHistory,
                                            load_time_histories, load_time_history, maneuver_from_time_history,
                                            trajectory_to_time_history, write_time_history)
 from jsbsim_calib.core.errors import DataError, InputError
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Input, Maneuver, fly
 

@@ -22,7 +22,7 @@ from jsbsim_calib.core.errors import DataError, InputError
 from jsbsim_calib.evaluate import PointResult, evaluate_dataset, summarize
 from jsbsim_calib.core.executor import ProcessExecutor
 from jsbsim_calib.factors import FactorSet
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.product import load_aircraft_geometry
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.physics_checks import OSWALD_RANGE, PROPELLER_PEAK_RANGE, run_physics_checks

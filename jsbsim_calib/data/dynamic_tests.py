@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from ..core.errors import DataError, ModelError, Problem
-from ..jsbsim.condition import Condition
+from ..flight.condition import Condition
 from ..jsbsim.trajectory import Input, Maneuver
 from ..physics.geometry import AircraftGeometry
 from .flighttest import SNAPSHOT_INPUTS, ControlAxis, load_control_travel, to_jsbsim_sign

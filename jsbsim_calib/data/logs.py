@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 from ..core.errors import DataError, InputError, Problem, raise_if
-from ..jsbsim.condition import Condition, TrimResult
+from ..flight.condition import Condition, TrimResult
 from ..physics.geometry import AircraftGeometry
 from ..core.units import IN, LBM
 from .g1000.parse import read_g1000

@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 
 from ..core.errors import DataError, InputError, Problem
-from ..jsbsim.condition import Condition
+from ..flight.condition import Condition
 from ..jsbsim.pilot import AXIS_OF_LOOP
 from ..jsbsim.trajectory import Hold, Input, Maneuver, Trajectory
 from .spreadsheet import read_sheet

@@ -46,7 +46,7 @@ from ..physics.geometry import (AircraftGeometry, ControlSurface, MassSpec, Mass
                                 ReferenceSpec, Tank)
 from ..core.units import FT, HP, IN, LB_PER_GAL_AVGAS, LBM, US_GAL
 from .aircraft import add_trim_aid
-from .condition import Condition, TrimResult
+from ..flight.condition import Condition, TrimResult
 from .probes import StallCase, default_conditions, default_stall_cases
 from .product import AircraftPaths, load_aircraft_geometry
 from .simulator import Simulator

@@ -45,7 +45,7 @@ import numpy as np
 from ..core.errors import TrimError
 from ..physics.atmosphere import isa_temperature, kias_from_kcas
 from ..core.units import FT, KT
-from .condition import Condition, TrimResult
+from ..flight.condition import Condition, TrimResult
 from .simulator import Simulator
 from .trim import set_atmosphere
 

@@ -23,7 +23,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..core.errors import ModelError, TrimError
-from .condition import Condition, TrimResult
+from ..flight.condition import Condition, TrimResult
 from .pilot import AXIS_OF_LOOP, MEASURED, MODE_OF_LOOP, TARGETS
 from .script import INTEGRATORS, SETTLE_S, Ramp, ScriptSpec, Setting, init_tree, output_tree, script_tree
 from .xml import tostring, write

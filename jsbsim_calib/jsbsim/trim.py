@@ -30,7 +30,7 @@ from ..physics.atmosphere import isa_pressure, isa_temperature
 from ..physics.engine import poh_mixture
 from ..physics.geometry import AircraftGeometry
 from ..core.units import FT, G0, HP, KT, LAPSE, T0
-from .condition import Condition, TrimResult
+from ..flight.condition import Condition, TrimResult
 
 G_FT = G0 / FT
 R_EARTH_FT = 20925646.325  # JSBSim's reference radius for geopotential altitude (ft)
