@@ -22,7 +22,7 @@ from pathlib import Path
 
 from jsbsim_calib.calibration.steady import steady_factors
 from jsbsim_calib.core.executor import SERIAL, ProcessExecutor
-from jsbsim_calib.fleet import evaluate_fleet
+from jsbsim_calib.evaluation.fleet import evaluate_fleet
 from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.script import SETTLE_S
 from jsbsim_calib.jsbsim.simulator import Simulator

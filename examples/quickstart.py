@@ -6,7 +6,7 @@ all in a temporary copy of the repository's JSBSim root (the repository is not w
 import shutil, sys, tempfile
 from pathlib import Path
 
-from jsbsim_calib.evaluate import evaluate_dataset
+from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.generate import generate
 from jsbsim_calib.jsbsim.product import write_calibrated
 from jsbsim_calib.jsbsim.simulator import Simulator

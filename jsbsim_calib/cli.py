@@ -55,8 +55,8 @@ from .calibration.trims import TRIM_STEPS
 from .core.commit import new_run
 from .core.errors import CalibError, InputError, Problem
 from .core.executor import make_executor
-from .fleet import evaluate_fleet, format_fleet, log_files
-from .evaluate import evaluate_dataset
+from .evaluation.fleet import evaluate_fleet, format_fleet, log_files
+from .evaluation.evaluate import evaluate_dataset
 from .generate import generate
 from .core.guard import command_guard, interrupted_message
 from .jsbsim.aircraft import read_factors
@@ -236,7 +236,7 @@ def cmd_calibrate(a) -> int:
 
 
 def _evaluate_fleet(a) -> int:
-    """``evaluate AIRCRAFT --data DIR``: every G1000 log of the folder (jsbsim_calib.fleet)."""
+    """``evaluate AIRCRAFT --data DIR``: every G1000 log of the folder (jsbsim_calib.evaluation.fleet)."""
     with _simulator(a) as sim:
         res = evaluate_fleet(sim, Path(a.data), executor=a.pool, progress=_progress(a))
     print(format_fleet(res))
@@ -385,7 +385,7 @@ def cmd_airfoil(a) -> int:
 
 def cmd_part60(a) -> int:
     from .data.part60 import FAIL
-    from .part60 import evaluate_part60, load_part60_inputs
+    from .evaluation.part60 import evaluate_part60, load_part60_inputs
     from .report.part60 import format_part60_table, write_part60_report
     with Simulator(Path(a.root), a.aircraft) as sim:
         inputs = load_part60_inputs(a.flight_test, sim.geometry.control_travel_file)
@@ -410,7 +410,7 @@ def _log_loading(a, sim, ds):
     """A G1000 log with the loading given on the command line and the weight estimated from the
     log (used instead of the assumption with --estimate-weight); other data unchanged."""
     from .data.logs import LogLoading, log_dataset
-    from .weight_estimate import estimate_weight, with_weight_offset
+    from .evaluation.weight_estimate import estimate_weight, with_weight_offset
     given = {k: getattr(a, k) for k in LOADING_OPTIONS if getattr(a, k, None) is not None}
     if ds.kind != "g1000":
         if given or getattr(a, "estimate_weight", False):
@@ -435,7 +435,7 @@ STAGE_NUMBERS = {"steady": "1", "trims": "2a", "dynamic": "2b"}
 def cmd_validate(a) -> int:
     from .calibration.validation import STAGE_DATA_KEYS, fold_names, stage_data, validate_steady, validate_trims
     from .calibration.validation_dynamic import dynamic_fold_names, validate_dynamic
-    from .physics_checks import run_physics_checks
+    from .evaluation.physics_checks import run_physics_checks
     from .report.validation import format_physics, format_validation, write_validation_report
     root, say, t0 = Path(a.root), _progress(a), time.perf_counter()
     geom = load_aircraft_geometry(root, a.aircraft)
@@ -550,7 +550,7 @@ def cmd_export(a) -> int:
 
 
 def cmd_regress(a) -> int:
-    from .regress import regress, write_baseline
+    from .evaluation.regress import regress, write_baseline
     say = _progress(a)
     if a.write_baseline:
         print(f"baseline: {write_baseline(Path(a.root), a.aircraft, Path(a.write_baseline), a.data, say)}")

@@ -22,7 +22,7 @@ from .calibration.fit import MAX_NFEV
 from .calibration.steady import steady_factors
 from .calibration.trims import TRIM_STEPS
 from .core.errors import ModelError
-from .evaluate import Evaluation, summary_dict
+from .evaluation.evaluate import Evaluation, summary_dict
 from .core.executor import SERIAL, Executor
 from .factors import SWITCHES, FactorSet
 from .jsbsim.product import load_aircraft_geometry

@@ -27,10 +27,10 @@ from .data.dynamic_tests import DynamicTest, aircraft_dynamic_tests
 from .data.flighttest import QuirkWarning
 from .data.load import load_dataset
 from .data.schemas import Dataset
-from .dynamics import DynamicEvaluation, evaluate_dynamic
+from .evaluation.evaluate_dynamic import DynamicEvaluation, evaluate_dynamic
 from .core.errors import InputError, ModelError, Problem
 from .core.executor import SERIAL, Executor
-from .evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
+from .evaluation.evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
 from .factors import FactorSet, switches
 from .jsbsim.probes import AeroCurves, aero_curves
 from .jsbsim.product import AircraftPaths, load_aircraft_geometry, propeller_tables, read_calibration_record

@@ -24,7 +24,7 @@ from jsbsim_calib.calibration.loop import MIN_EVIDENCE, MIN_EXPLAINED, evidence_
 from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, acts_on, close_loop_dynamic, check_tests,
                                                         companion_factors, cross_validate, dynamic_library,
                                                         effect_axis, noise_in_scales)
-from jsbsim_calib.dynamics import CHANNEL_SCALES, load_recorded_tests
+from jsbsim_calib.evaluation.evaluate_dynamic import CHANNEL_SCALES, load_recorded_tests
 from jsbsim_calib.core.errors import InputError
 from jsbsim_calib.jsbsim import xml
 from jsbsim_calib.jsbsim.aircraft import EFFECT_SYSTEM_PREFIX

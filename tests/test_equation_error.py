@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from jsbsim_calib.calibration.equation_error import EE_AXES, equation_error, inertia_columns, rank
-from jsbsim_calib.dynamics import load_recorded_tests
+from jsbsim_calib.evaluation.evaluate_dynamic import load_recorded_tests
 from jsbsim_calib.jsbsim.aircraft import moment_of_inertia, set_moment_of_inertia
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.xml import read, write

@@ -14,7 +14,7 @@ import pytest
 
 from jsbsim_calib.calibration.fit import fit
 from jsbsim_calib.calibration.points import PointSet, point_residuals
-from jsbsim_calib.dynamics import evaluate_dynamic
+from jsbsim_calib.evaluation.evaluate_dynamic import evaluate_dynamic
 from jsbsim_calib.core.executor import SERIAL, DaskExecutor, ProcessExecutor, make_executor
 from jsbsim_calib.core.errors import CalibError
 from jsbsim_calib.flight.condition import Condition

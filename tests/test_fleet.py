@@ -9,7 +9,7 @@ import pytest
 
 from jsbsim_calib.core.errors import DataError
 from jsbsim_calib.core.executor import ProcessExecutor
-from jsbsim_calib.fleet import evaluate_fleet, format_fleet
+from jsbsim_calib.evaluation.fleet import evaluate_fleet, format_fleet
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.testing import synthetic_fleet
 

@@ -25,7 +25,7 @@ import pytest
 from jsbsim_calib.jsbsim.product import AircraftPaths
 from jsbsim_calib.calibration.steady import STEADY_NAMES, steady_factors
 from jsbsim_calib.data.schemas import METRICS
-from jsbsim_calib.evaluate import evaluate_dataset
+from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import QuirkWarning

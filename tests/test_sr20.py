@@ -15,7 +15,7 @@ import pytest
 from jsbsim_calib.calibration.fit import fit
 from jsbsim_calib.calibration.points import PointSet, point_residuals
 from jsbsim_calib.data.load import load_dataset
-from jsbsim_calib.evaluate import evaluate_dataset
+from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator

@@ -19,14 +19,14 @@ from jsbsim_calib.calibration.validation import (FLAG_RATIO, ErrorStat, FoldMetr
 from jsbsim_calib.data.logs import LogLoading, log_conditions, log_dataset, log_value
 from jsbsim_calib.data.schemas import Dataset
 from jsbsim_calib.core.errors import DataError, InputError
-from jsbsim_calib.evaluate import PointResult, evaluate_dataset, summarize
+from jsbsim_calib.evaluation.evaluate import PointResult, evaluate_dataset, summarize
 from jsbsim_calib.core.executor import ProcessExecutor
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.product import load_aircraft_geometry
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.physics_checks import OSWALD_RANGE, PROPELLER_PEAK_RANGE, run_physics_checks
-from jsbsim_calib.weight_estimate import estimate_weight, with_weight_offset
+from jsbsim_calib.evaluation.physics_checks import OSWALD_RANGE, PROPELLER_PEAK_RANGE, run_physics_checks
+from jsbsim_calib.evaluation.weight_estimate import estimate_weight, with_weight_offset
 
 REPO = Path(__file__).resolve().parents[1]
 LOG = REPO / "data" / "g1000" / "log_110812_095915_KCKN.csv"

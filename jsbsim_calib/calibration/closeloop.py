@@ -44,7 +44,7 @@ from typing import Callable
 import numpy as np
 
 from ..data.schemas import METRICS, Dataset
-from ..evaluate import KINDS, Evaluation, Summary, evaluate_dataset, summarize, summary_dict
+from ..evaluation.evaluate import KINDS, Evaluation, Summary, evaluate_dataset, summarize, summary_dict
 from ..factors import FactorSet, levers
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.xml import Tree

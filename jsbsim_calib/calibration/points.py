@@ -15,7 +15,7 @@ from typing import Sequence
 import numpy as np
 
 from ..data.schemas import METRICS, Dataset
-from ..evaluate import KINDS
+from ..evaluation.evaluate import KINDS
 from ..flight.condition import Condition, TrimResult
 from ..jsbsim.simulator import Simulator
 

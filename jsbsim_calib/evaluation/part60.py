@@ -18,18 +18,18 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicTest,
+from ..data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicTest,
                                  load_dynamic_tests)
-from .data.flighttest import load_control_travel, to_data_sign
-from .data.part60 import (CATALOGUE, CATALOGUE_BY_ID, ENGINE_STEP_S, FAIL, NA, PASS, MetricVerdict, Part60Test,
+from ..data.flighttest import load_control_travel, to_data_sign
+from ..data.part60 import (CATALOGUE, CATALOGUE_BY_ID, ENGINE_STEP_S, FAIL, NA, PASS, MetricVerdict, Part60Test,
                           StaticCase, catalogue_test, classify_files, combine, engine_maneuver, judge,
                           load_static_cases, snapshot_values)
-from .data.timehistory import load_time_histories
-from .dynamics import fly_test
-from .core.errors import CalibError, DataError, Problem
-from .flight.condition import Condition, TrimResult
-from .jsbsim.simulator import Simulator
-from .jsbsim.trajectory import Trajectory, fly
+from ..data.timehistory import load_time_histories
+from .evaluate_dynamic import fly_test
+from ..core.errors import CalibError, DataError, Problem
+from ..flight.condition import Condition, TrimResult
+from ..jsbsim.simulator import Simulator
+from ..jsbsim.trajectory import Trajectory, fly
 from .timehistory_compare import (ChannelError, TimeHistoryComparison, band_metric, compare_time_history,
                                   response_times, unit_of)
 

@@ -20,11 +20,11 @@ from typing import Sequence
 
 import numpy as np
 
-from .data.logs import log_conditions, log_value
-from .data.schemas import Dataset
-from .core.errors import DataError
-from .flight.condition import Condition
-from .jsbsim.simulator import Simulator
+from ..data.logs import log_conditions, log_value
+from ..data.schemas import Dataset
+from ..core.errors import DataError
+from ..flight.condition import Condition
+from ..jsbsim.simulator import Simulator
 
 METHODS = {"rpm": "level-flight RPM (power required against weight)",
            "pitch": "level-flight pitch attitude (confounded with an attitude-reference offset)"}
