@@ -28,7 +28,7 @@ from jsbsim_calib.jsbsim.script import SETTLE_S
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Input, Maneuver, fly
 from jsbsim_calib.testing import synthetic_fleet
-from jsbsim_calib.workflow import run_dynamic, run_steady, run_trims
+from jsbsim_calib.calibration.workflow import run_dynamic, run_steady, run_trims
 
 ROOT = Path(__file__).resolve().parents[1]
 THESIS_MIN = {"c172 steady": 10.5, "sr20 steady": 20.0, "c172 two stages": 77.0}

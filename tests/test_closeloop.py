@@ -204,7 +204,7 @@ def test_written_aircraft_flies_like_the_closed_loop_model(tmp_path, clean):
 # --------------------------------------------------------------------------- real data
 @pytest.mark.slow
 def test_real_c172_trims_without_pfactor_step_find_the_yaw_effect(tmp_path):
-    from jsbsim_calib.workflow import run_close_loop
+    from jsbsim_calib.calibration.workflow import run_close_loop
     res = run_close_loop(REPO, "c172", REPO / "data" / "c172_flight_test_snapshots.csv", skip_steps=("pfactor",))
     s = res.summaries("all")
     assert res.added[:1] == ["p_factor"], [(c.effect, c.round, c.reason) for c in res.candidates]

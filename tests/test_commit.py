@@ -335,7 +335,7 @@ def test_hand_edits_survive_calibrate_and_generate(tmp_path, capsys):
 
 def test_a_model_switch_set_by_hand_is_kept_and_said_so(tmp_path, recwarn):
     """The slipstream switches are the user's: a stage starts from the file's value and keeps it
-    (jsbsim_calib.workflow.run_steady), so the warning says it is kept and recorded, not
+    (jsbsim_calib.calibration.workflow.run_steady), so the warning says it is kept and recorded, not
     overwritten; a fitted factor set by hand is named as overwritten."""
     from jsbsim_calib.factors import switches
     from jsbsim_calib.jsbsim.aircraft import read_factors

@@ -19,7 +19,7 @@ from jsbsim_calib.core.executor import SERIAL, DaskExecutor, ProcessExecutor, ma
 from jsbsim_calib.core.errors import CalibError
 from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.workflow import aircraft_data, dynamic_tests
+from jsbsim_calib.calibration.workflow import aircraft_data, dynamic_tests
 
 REPO = Path(__file__).resolve().parents[1]
 A = Condition(pressure_alt_ft=5500, weight_lb=2400, ktas=110, cg_in=42.0)

@@ -29,7 +29,7 @@ from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import QuirkWarning
-from jsbsim_calib.workflow import aircraft_data, run_dynamic, run_steady, run_trims
+from jsbsim_calib.calibration.workflow import aircraft_data, run_dynamic, run_steady, run_trims
 
 pytestmark = pytest.mark.slow          # the main job and whole chains: the full suite only
 

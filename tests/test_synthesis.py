@@ -185,7 +185,7 @@ def test_the_loop_on_real_data_runs_and_says_what_it_synthesized(tmp_path, data)
     aileron and rudder selects Cn ~ r b/2V, beta x Tc, flaps x Tc, which fails cross-validation
     (38 -> 425): nothing added. G1000 log: attitude_reference_offset added; synthesis on the
     remaining pitch selects CL ~ 1, alpha x Tc, rejected (BIC +100, null test p 0.46)."""
-    from jsbsim_calib.workflow import run_close_loop
+    from jsbsim_calib.calibration.workflow import run_close_loop
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", QuirkWarning)
         res = run_close_loop(REPO, "c172", REPO / "data" / data)

@@ -11,7 +11,7 @@ import pandas as pd
 
 from ..calibration.diagnose import REGRESSORS
 from ..factors import REGISTRY
-from ..workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
+from ..calibration.workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
 from . import plots
 from .synthesis import synthesis_section
 from .text import format_summary
