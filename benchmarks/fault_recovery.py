@@ -35,8 +35,8 @@ from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.probes import trim_derivatives
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.xml import read, write
-from jsbsim_calib.synth_maneuvers import load_plan, synthesize_maneuvers
-from jsbsim_calib.testing import root_copy, truth_copy
+from jsbsim_calib.synthetic.maneuvers import load_plan, synthesize_maneuvers
+from jsbsim_calib.synthetic.truth import root_copy, truth_copy
 
 REPO = Path(__file__).resolve().parents[1]
 CRUISE = Condition(pressure_alt_ft=5500, weight_lb=2400, ktas=110, cg_in=42.0)

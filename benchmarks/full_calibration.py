@@ -27,7 +27,7 @@ from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.script import SETTLE_S
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Input, Maneuver, fly
-from jsbsim_calib.testing import synthetic_fleet
+from jsbsim_calib.synthetic.truth import synthetic_fleet
 from jsbsim_calib.calibration.workflow import run_dynamic, run_steady, run_trims
 
 ROOT = Path(__file__).resolve().parents[1]

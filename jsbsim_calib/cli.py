@@ -70,8 +70,8 @@ from .report.markdown import (write_close_loop_report, write_dynamic_report, wri
 from .report.progress import PlanStep, Progress, Tee
 from .report.text import evaluation_table, format_stability, format_summary
 from .report.verdicts import format_verdicts, verdicts
-from .synth import synthesize, write_csv
-from .synth_maneuvers import check_settings, load_plan, synthesize_maneuvers
+from .synthetic.snapshots import synthesize, write_csv
+from .synthetic.maneuvers import check_settings, load_plan, synthesize_maneuvers
 from .calibration.variants import SLIPSTREAM, compare_variants
 from .calibration.workflow import (STAGE_DATA, STAGE_NAMES, load_data_for, run_close_loop, run_dynamic, run_steady, run_trims,
                        stage_plan, stage_start)

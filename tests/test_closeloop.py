@@ -26,7 +26,7 @@ from jsbsim_calib.calibration.effects import library
 from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import QuirkWarning
-from jsbsim_calib.synth import synthesize, write_csv
+from jsbsim_calib.synthetic.snapshots import synthesize, write_csv
 
 REPO = Path(__file__).resolve().parents[1]
 TRAVEL = REPO / "data" / "c172_control_travel.csv"

@@ -31,7 +31,7 @@ from jsbsim_calib.jsbsim.aircraft import EFFECT_SYSTEM_PREFIX
 from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Input, Maneuver, fly
-from jsbsim_calib.synth_maneuvers import NOISE, load_plan, synthesize_maneuvers
+from jsbsim_calib.synthetic.maneuvers import NOISE, load_plan, synthesize_maneuvers
 
 REPO = Path(__file__).resolve().parents[1]
 TRUTH_CN_P = -0.05          # yaw due to roll rate the truth has and the model lacks

@@ -2,8 +2,8 @@
 cases, the written aircraft in JSBSim's runner, and the real trims and G1000 log.
 
 A truth is a copy of the committed C172 with an undeclared term written into an axis of its XML
-(:func:`jsbsim_calib.testing.truth_copy`); its data are a synthetic campaign flown by it
-(:func:`jsbsim_calib.synth.synthesize`, with measurement noise); the clean C172 then closes the
+(:func:`jsbsim_calib.synthetic.truth.truth_copy`); its data are a synthetic campaign flown by it
+(:func:`jsbsim_calib.synthetic.snapshots.synthesize`, with measurement noise); the clean C172 then closes the
 loop on them. Measured on this machine (the values the comments give) with the committed C172.
 """
 from __future__ import annotations
@@ -29,7 +29,7 @@ from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.xml import read
 from jsbsim_calib.report.markdown import write_close_loop_report
-from jsbsim_calib.testing import (UndeclaredTerm, add_undeclared_term, root_copy, synthetic_rows, truth_copy,
+from jsbsim_calib.synthetic.truth import (UndeclaredTerm, add_undeclared_term, root_copy, synthetic_rows, truth_copy,
                                   write_climbs, write_snapshots)
 
 REPO = Path(__file__).resolve().parents[1]

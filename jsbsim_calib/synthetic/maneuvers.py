@@ -1,7 +1,7 @@
 """Synthetic flight-test time histories: a plan of maneuvers flown by a truth aircraft, written
 as format 1 (:mod:`jsbsim_calib.data.timehistory`).
 
-A plan is a TOML file (``jsbsim_calib/plans/level5.toml`` is the default, ``--plan level5``)::
+A plan is a TOML file (``jsbsim_calib/synthetic/plans/level5.toml`` is the default, ``--plan level5``)::
 
     [plan]
     name = "level5"
@@ -51,14 +51,14 @@ try:
 except ModuleNotFoundError:      # Python < 3.11
     import tomli as tomllib
 
-from .data.flighttest import load_control_travel, to_jsbsim_sign
-from .data.timehistory import (AXIS_CHANNELS, CHANNELS, MIXTURES, PILOT_AXES, Configuration, SensorError, pilot_windows,
+from ..data.flighttest import load_control_travel, to_jsbsim_sign
+from ..data.timehistory import (AXIS_CHANNELS, CHANNELS, MIXTURES, PILOT_AXES, Configuration, SensorError, pilot_windows,
                                TimeHistory, TimeHistoryMeta, load_time_history,
                                trajectory_to_time_history, write_time_history)
-from .core.errors import InputError, Problem
-from .flight.condition import Condition
-from .jsbsim.pilot import AXIS_OF_LOOP
-from .jsbsim.trajectory import RECORD, Hold, Input, Maneuver, fly
+from ..core.errors import InputError, Problem
+from ..flight.condition import Condition
+from ..jsbsim.pilot import AXIS_OF_LOOP
+from ..jsbsim.trajectory import RECORD, Hold, Input, Maneuver, fly
 
 PLANS_DIR = Path(__file__).resolve().parent / "plans"
 DEFAULT_RATE_HZ = 10.0
