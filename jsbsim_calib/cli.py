@@ -321,7 +321,7 @@ def _synth_plan(a) -> int:
 
 def _close_loop_dynamic(a) -> int:
     from .calibration.closeloop_dynamic import run_close_loop_dynamic
-    from .report.closeloop_dynamic import format_result, write_close_loop_dynamic_report
+    from .report.closeloop_dynamic_report import format_result, write_close_loop_dynamic_report
     if a.skip:
         raise CalibError("close-loop --flight-test: --skip reruns stage 2a for trim data, not for time histories")
     root = Path(a.root)
@@ -384,9 +384,9 @@ def cmd_airfoil(a) -> int:
 
 
 def cmd_part60(a) -> int:
-    from .data.part60 import FAIL
+    from .data.part60_tests import FAIL
     from .evaluation.part60 import evaluate_part60, load_part60_inputs
-    from .report.part60 import format_part60_table, write_part60_report
+    from .report.part60_report import format_part60_table, write_part60_report
     with Simulator(Path(a.root), a.aircraft) as sim:
         inputs = load_part60_inputs(a.flight_test, sim.geometry.control_travel_file)
         ev = evaluate_part60(sim, summary=inputs.summary, time_histories=inputs.time_histories,
@@ -436,7 +436,7 @@ def cmd_validate(a) -> int:
     from .calibration.validation import STAGE_DATA_KEYS, fold_names, stage_data, validate_steady, validate_trims
     from .calibration.validation_dynamic import dynamic_fold_names, validate_dynamic
     from .evaluation.physics_checks import run_physics_checks
-    from .report.validation import format_physics, format_validation, write_validation_report
+    from .report.validation_report import format_physics, format_validation, write_validation_report
     root, say, t0 = Path(a.root), _progress(a), time.perf_counter()
     geom = load_aircraft_geometry(root, a.aircraft)
     stages = (a.stage,)
@@ -479,7 +479,7 @@ def cmd_validate(a) -> int:
 
 def cmd_slipstream(a) -> int:
     from .factors import SWITCHES
-    from .report.variants import format_comparison, write_comparison_report
+    from .report.variants_report import format_comparison, write_comparison_report
     root = Path(a.root)
     load_aircraft_geometry(root, a.aircraft)
     chosen = [v for v in SLIPSTREAM if not a.variant or v.name in a.variant]

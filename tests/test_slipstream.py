@@ -199,7 +199,7 @@ def test_the_comparison_table_has_a_column_per_variant_and_no_number_for_a_nan()
     """The slipstream report's console table (fast: no chain flown; the command's own test above
     flies one), a figure that is not a number shown as '-'."""
     from jsbsim_calib.factors import FactorSet
-    from jsbsim_calib.report.variants import _cell, format_comparison, table
+    from jsbsim_calib.report.variants_report import _cell, format_comparison, table
     from jsbsim_calib.calibration.variants import SLIPSTREAM, VariantResult
     results = [VariantResult(v, FactorSet(), {}, {}, {}, 0.0) for v in SLIPSTREAM]
     head, rows = table(results)

@@ -200,7 +200,7 @@ def physics():
 
 def test_the_physics_checks_are_printed_and_written(physics, tmp_path):
     """The validation report's physics section (fast: no refit; the command's own test flies folds)."""
-    from jsbsim_calib.report.validation import format_physics, write_validation_report
+    from jsbsim_calib.report.validation_report import format_physics, write_validation_report
     text = format_physics(physics["c172"])
     assert text.startswith("c172: physics checks") and len(text.splitlines()) == 1 + len(physics["c172"].checks()) + len(physics["c172"].notes)
     md = write_validation_report("c172", [], physics["c172"], tmp_path, "jsbsim-calib validate c172").read_text()

@@ -3,8 +3,8 @@
 :func:`compare_time_history` replays a record on a simulator (:func:`replay_maneuver`: the
 open-loop replay of :func:`~jsbsim_calib.data.timehistory.maneuver_from_time_history` with
 the replay policy below), samples the model at the data's times (surfaces in the data's
-signs), computes the Part 60 test's metrics (:data:`jsbsim_calib.data.part60.CATALOGUE`) on
-both traces with the same functions, judges them (:func:`~jsbsim_calib.data.part60.judge`)
+signs), computes the Part 60 test's metrics (:data:`jsbsim_calib.data.part60_tests.CATALOGUE`) on
+both traces with the same functions, judges them (:func:`~jsbsim_calib.data.part60_tests.judge`)
 and adds every channel's error (model - data). The result is a :class:`TimeHistoryComparison`.
 
 Replay policy (:data:`EXAMINED_AXES`): the axes a test examines follow the recorded inputs,
@@ -33,7 +33,7 @@ import numpy as np
 
 from ..data.dynamic_tests import ROLL_WINDOW_S
 from ..data.flighttest import to_data_sign
-from ..data.part60 import INPUT_CHANNEL, METRIC_CHANNEL, NA, MetricVerdict, Part60Test, catalogue_test, judge
+from ..data.part60_tests import INPUT_CHANNEL, METRIC_CHANNEL, NA, MetricVerdict, Part60Test, catalogue_test, judge
 from ..data.timehistory import TimeHistory, maneuver_from_time_history
 from .evaluate_dynamic import peak_rate, steady_roll_rate
 from ..core.errors import CalibError

@@ -13,7 +13,7 @@ from ..calibration.diagnose import REGRESSORS
 from ..factors import REGISTRY
 from ..calibration.workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
 from . import plots
-from .synthesis import synthesis_section
+from .synthesis_section import synthesis_section
 from .text import format_summary
 
 JSBSIM_VERSION = version("jsbsim")

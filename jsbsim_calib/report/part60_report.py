@@ -24,7 +24,7 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from ..data.part60 import FAIL, NA, PASS  # noqa: E402
+from ..data.part60_tests import FAIL, NA, PASS  # noqa: E402
 from ..evaluation.part60 import CaseResult, ObjectiveTest, Part60Evaluation, TracePlot  # noqa: E402
 
 JSBSIM_VERSION = version("jsbsim")
