@@ -30,8 +30,8 @@ from pathlib import Path
 from jsbsim_calib.calibration.closeloop_dynamic import close_loop_dynamic
 from jsbsim_calib.data.flighttest import load_control_travel
 from jsbsim_calib.evaluation.evaluate_dynamic import load_recorded_tests
-from jsbsim_calib.jsbsim.aircraft import moment_of_inertia, set_factor_values, set_moment_of_inertia
 from jsbsim_calib.flight.condition import Condition
+from jsbsim_calib.jsbsim.aircraft import moment_of_inertia, set_factor_values, set_moment_of_inertia
 from jsbsim_calib.jsbsim.probes import trim_derivatives
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.xml import read, write

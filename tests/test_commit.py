@@ -16,14 +16,14 @@ from pathlib import Path
 
 import pytest
 
-from jsbsim_calib.core import commit as commit_mod
 from jsbsim_calib.cli import main
+from jsbsim_calib.core import commit as commit_mod
 from jsbsim_calib.core.commit import commit, recover
+from jsbsim_calib.core.tempdirs import PREFIX, sweep_stale
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.generate import build
 from jsbsim_calib.jsbsim.product import AircraftPaths, recover_product
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.core.tempdirs import PREFIX, sweep_stale
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from jsbsim_calib.cli import main
-from jsbsim_calib.data.timehistory import load_time_histories
 from jsbsim_calib.core.errors import InputError
+from jsbsim_calib.data.timehistory import load_time_histories
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.synthetic.maneuvers import check_settings, load_plan, synthesize_maneuvers
 

@@ -18,14 +18,14 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from ..core.errors import ModelError
+from ..core.executor import SERIAL, Executor
+from ..evaluation.evaluate import Evaluation, summary_dict
+from ..factors import SWITCHES, FactorSet
+from ..jsbsim.product import load_aircraft_geometry
 from .fit import MAX_NFEV
 from .steady import steady_factors
 from .trims import TRIM_STEPS
-from ..core.errors import ModelError
-from ..evaluation.evaluate import Evaluation, summary_dict
-from ..core.executor import SERIAL, Executor
-from ..factors import SWITCHES, FactorSet
-from ..jsbsim.product import load_aircraft_geometry
 from .workflow import run_dynamic, run_steady, run_trims
 
 FULL_POWER = 0.95            # throttle at or above this: a full-power (slipstream-heavy) row

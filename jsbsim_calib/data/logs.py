@@ -25,9 +25,9 @@ import numpy as np
 import pandas as pd
 
 from ..core.errors import DataError, InputError, Problem, raise_if
+from ..core.units import IN, LBM
 from ..flight.condition import Condition, TrimResult
 from ..physics.geometry import AircraftGeometry
-from ..core.units import IN, LBM
 from .g1000.parse import read_g1000
 from .g1000.segments import SegmentCriteria, WeightAssumption, extract_segments, segments_dataframe
 from .schemas import Dataset, temperature_problems

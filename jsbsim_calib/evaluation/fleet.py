@@ -15,11 +15,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
 
-from ..data.logs import METRICS, log_dataset
 from ..core.errors import CalibError, DataError
-from .evaluate import evaluate_dataset
 from ..core.executor import SERIAL, Executor
+from ..data.logs import METRICS, log_dataset
 from ..jsbsim.simulator import Simulator
+from .evaluate import evaluate_dataset
 
 CHUNK_PER_WORKER = 4
 

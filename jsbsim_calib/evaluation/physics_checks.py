@@ -25,8 +25,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ..core.units import FT, KT
 from ..data.schemas import Dataset
-from .evaluate import KINDS
 from ..factors import FactorSet
 from ..flight.condition import Condition, TrimResult
 from ..jsbsim.probes import AeroReading
@@ -34,7 +34,7 @@ from ..jsbsim.product import AircraftPaths, propeller_tables
 from ..jsbsim.simulator import Simulator
 from ..physics.atmosphere import isa_temperature
 from ..physics.propeller import PropellerTables
-from ..core.units import FT, KT
+from .evaluate import KINDS
 
 WEIGHT_STEP_LB = 50.0            # central difference of the climb rate in weight
 POLAR_ALT_FT = 5000.0            # drag polar: level flight here, ISA, flaps up

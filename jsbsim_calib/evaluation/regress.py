@@ -22,11 +22,11 @@ from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 from .. import __version__
+from ..core.errors import DataError, InputError, Problem
 from ..data.load import load_dataset
 from ..data.schemas import METRICS
-from ..core.errors import DataError, InputError, Problem
-from .evaluate import KINDS, evaluate_dataset
 from ..jsbsim.simulator import Simulator
+from .evaluate import KINDS, evaluate_dataset
 
 DEFAULT_SHARE = 0.1
 EVALUATED_KINDS = ("poh_climb", "poh_cruise", "flight_test", "flap_climb", "g1000")

@@ -31,13 +31,13 @@ from typing import Callable, Mapping
 
 import numpy as np
 
+from ..core.errors import CalibError
 from ..data.dynamic_tests import ROLL_WINDOW_S
 from ..data.flighttest import to_data_sign
 from ..data.part60_tests import INPUT_CHANNEL, METRIC_CHANNEL, NA, MetricVerdict, Part60Test, catalogue_test, judge
 from ..data.timehistory import TimeHistory, maneuver_from_time_history
-from .evaluate_dynamic import peak_rate, steady_roll_rate
-from ..core.errors import CalibError
 from ..jsbsim.trajectory import RATE_HZ, Hold, Maneuver, Trajectory, fly
+from .evaluate_dynamic import peak_rate, steady_roll_rate
 
 CHANNELS = ("pressure_alt_ft", "kcas", "ktas", "vs_fpm", "pitch_deg", "roll_deg", "heading_deg", "p_deg_s",
             "q_deg_s", "r_deg_s", "alpha_deg", "beta_deg", "nz_g", "elevator_deg", "aileron_deg", "rudder_deg",

@@ -20,9 +20,9 @@ from typing import Sequence
 
 import numpy as np
 
+from ..core.errors import DataError
 from ..data.logs import log_conditions, log_value
 from ..data.schemas import Dataset
-from ..core.errors import DataError
 from ..flight.condition import Condition
 from ..jsbsim.simulator import Simulator
 

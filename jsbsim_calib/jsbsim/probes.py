@@ -43,9 +43,9 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..core.errors import TrimError
-from ..physics.atmosphere import isa_temperature, kias_from_kcas
 from ..core.units import FT, KT
 from ..flight.condition import Condition, TrimResult
+from ..physics.atmosphere import isa_temperature, kias_from_kcas
 from .simulator import Simulator
 from .trim import set_atmosphere
 

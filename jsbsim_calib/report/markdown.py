@@ -10,8 +10,8 @@ import numpy as np
 import pandas as pd
 
 from ..calibration.diagnose import REGRESSORS
-from ..factors import REGISTRY
 from ..calibration.workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
+from ..factors import REGISTRY
 from . import plots
 from .synthesis_section import synthesis_section
 from .text import format_summary
