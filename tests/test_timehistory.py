@@ -9,11 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from jsbsim_calib.core.errors import DataError, InputError
 from jsbsim_calib.data.flighttest import load_control_travel
 from jsbsim_calib.data.timehistory import (CHANNELS, Configuration, TimeHistory, TimeHistoryMeta,
                                            load_time_histories, load_time_history, maneuver_from_time_history,
                                            trajectory_to_time_history, write_time_history)
-from jsbsim_calib.core.errors import DataError, InputError
 from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Input, Maneuver, fly
