@@ -262,7 +262,7 @@ class FactorSet(Mapping[str, float]):
     """Values of all factors (neutral unless given). Out-of-bounds values raise, never clamp.
 
     ``extra``: more factors beyond the registry (the factors of effects added to an
-    aircraft, :mod:`jsbsim_calib.effects`), with their own bounds and properties."""
+    aircraft, :mod:`jsbsim_calib.calibration.effects`), with their own bounds and properties."""
 
     def __init__(self, values: Mapping[str, float] | None = None, extra: Mapping[str, Factor] | None = None):
         self._extra = dict(extra or {})

@@ -1,4 +1,4 @@
-"""Tests of jsbsim_calib.airfoil on the stored polars in airfoils/ (real data, physics facts)."""
+"""Tests of jsbsim_calib.physics.airfoil on the stored polars in airfoils/ (real data, physics facts)."""
 from __future__ import annotations
 
 import sys

@@ -1,4 +1,4 @@
-"""Physics tests of the BEM propeller model (jsbsim_calib.propeller).
+"""Physics tests of the BEM propeller model (jsbsim_calib.physics.propeller).
 
 The propeller is C172-like: McCauley 1A170E/JHA7660, 76 in diameter, 60 in
 geometric pitch, 2 blades.  Chord distribution (documented choice): chord/R
@@ -361,7 +361,7 @@ def _clarky_available() -> bool:
     return hasattr(af, "load_airfoil")
 
 
-@pytest.mark.skipif(not _clarky_available(), reason="jsbsim_calib.airfoil or airfoils/clarky.csv not available")
+@pytest.mark.skipif(not _clarky_available(), reason="jsbsim_calib.physics.airfoil or airfoils/clarky.csv not available")
 def test_c172_prop_with_stored_clarky_polar() -> None:
     from jsbsim_calib.physics.airfoil import load_airfoil
 

@@ -11,7 +11,7 @@ The chain (each step a function, all in SI):
 5. ``body_tables``      fuselage and drag items (empirical, :mod:`.body`).
 
 ``build_aero`` runs them in order and returns an :class:`AeroModel`: named tables and
-constants that :mod:`jsbsim_calib.xmlmodel` writes into the aircraft file.
+constants that :mod:`jsbsim_calib.jsbsim.aircraft` writes into the aircraft file.
 """
 from __future__ import annotations
 
