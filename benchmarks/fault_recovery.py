@@ -30,14 +30,14 @@ from pathlib import Path
 
 from jsbsim_calib.calibration.closeloop_dynamic import close_loop_dynamic
 from jsbsim_calib.data.flighttest import load_control_travel
-from jsbsim_calib.dynamics import load_recorded_tests
+from jsbsim_calib.evaluation.evaluate_dynamic import load_recorded_tests
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.aircraft import moment_of_inertia, set_factor_values, set_moment_of_inertia
-from jsbsim_calib.jsbsim.condition import Condition
 from jsbsim_calib.jsbsim.probes import trim_derivatives
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.xml import read, write
-from jsbsim_calib.synth_maneuvers import load_plan, synthesize_maneuvers
-from jsbsim_calib.testing import root_copy, truth_copy
+from jsbsim_calib.synthetic.maneuvers import load_plan, synthesize_maneuvers
+from jsbsim_calib.synthetic.truth import root_copy, truth_copy
 
 REPO = Path(__file__).resolve().parents[1]
 CRUISE = Condition(pressure_alt_ft=5500, weight_lb=2400, ktas=110, cg_in=42.0)

@@ -21,14 +21,14 @@ import time
 from pathlib import Path
 
 from jsbsim_calib.calibration.steady import steady_factors
-from jsbsim_calib.executor import SERIAL, ProcessExecutor
-from jsbsim_calib.fleet import evaluate_fleet
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.calibration.workflow import run_dynamic, run_steady, run_trims
+from jsbsim_calib.core.executor import SERIAL, ProcessExecutor
+from jsbsim_calib.evaluation.fleet import evaluate_fleet
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.script import SETTLE_S
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Input, Maneuver, fly
-from jsbsim_calib.testing import synthetic_fleet
-from jsbsim_calib.workflow import run_dynamic, run_steady, run_trims
+from jsbsim_calib.synthetic.truth import synthetic_fleet
 
 ROOT = Path(__file__).resolve().parents[1]
 THESIS_MIN = {"c172 steady": 10.5, "sr20 steady": 20.0, "c172 two stages": 77.0}

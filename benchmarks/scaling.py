@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from jsbsim_calib.calibration.steady import steady_factors, steady_stage
-from jsbsim_calib.executor import make_executor
+from jsbsim_calib.calibration.workflow import aircraft_data, run_dynamic, run_steady, run_trims
+from jsbsim_calib.core.executor import make_executor
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.workflow import aircraft_data, run_dynamic, run_steady, run_trims
 
 ROOT = Path(__file__).resolve().parents[1]
 PREDICT_AT = (16, 64)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.calibration.steady import steady_stage
-from jsbsim_calib.workflow import aircraft_data
+from jsbsim_calib.calibration.workflow import aircraft_data
 
 
 def main(name: str = "c172") -> None:

@@ -12,9 +12,9 @@ import time
 import warnings
 from pathlib import Path
 
-from jsbsim_calib.evaluate import evaluate_dataset
+from jsbsim_calib.calibration.workflow import load_data_for, run_close_loop, run_trims
+from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.workflow import load_data_for, run_close_loop, run_trims
 
 
 def main() -> None:

@@ -14,8 +14,8 @@ from pathlib import Path
 
 from jsbsim_calib.calibration.validation import STAGE_DATA_KEYS, stage_data, validate_steady, validate_trims
 from jsbsim_calib.calibration.validation_dynamic import validate_dynamic
+from jsbsim_calib.evaluation.physics_checks import run_physics_checks
 from jsbsim_calib.jsbsim.product import load_aircraft_geometry
-from jsbsim_calib.physics_checks import run_physics_checks
 
 
 def main(names: list[str]) -> None:

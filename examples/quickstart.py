@@ -6,13 +6,13 @@ all in a temporary copy of the repository's JSBSim root (the repository is not w
 import shutil, sys, tempfile
 from pathlib import Path
 
-from jsbsim_calib.evaluate import evaluate_dataset
+from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.generate import generate
 from jsbsim_calib.jsbsim.product import write_calibrated
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.report.plots import climb_vs_altitude, save
 from jsbsim_calib.report.text import evaluation_table
-from jsbsim_calib.workflow import load_data_for, run_steady
+from jsbsim_calib.calibration.workflow import load_data_for, run_steady
 
 REPO = Path(__file__).resolve().parents[1]
 root = Path(tempfile.mkdtemp(prefix="jsbsim-calib-quickstart-"))

@@ -51,28 +51,29 @@ elif __name__ == "__mp_main__":
 from . import __version__  # noqa: E402  (after the SIGINT handler: imports take seconds)
 from .calibration.loop import write_aircraft  # noqa: E402
 from .calibration.steady import steady_factors
-from .commit import new_run
-from .errors import CalibError, InputError, Problem
-from .executor import make_executor
-from .fleet import evaluate_fleet, format_fleet, log_files
-from .evaluate import evaluate_dataset
+from .calibration.trims import TRIM_STEPS
+from .core.commit import new_run
+from .core.errors import CalibError, InputError, Problem
+from .core.executor import make_executor
+from .evaluation.fleet import evaluate_fleet, format_fleet, log_files
+from .evaluation.evaluate import evaluate_dataset
 from .generate import generate
-from .guard import command_guard, interrupted_message
+from .core.guard import command_guard, interrupted_message
 from .jsbsim.aircraft import read_factors
 from .jsbsim.probes import report
-from .jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration, write_calibrated
+from .jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration, recover_product, write_calibrated
 from .jsbsim.simulator import Simulator
 from .physics.airfoil import regenerate
-from .preflight import command_problems
+from .core.preflight import command_problems
 from .report.markdown import (write_close_loop_report, write_dynamic_report, write_evaluation_report, write_log_report,
                               write_steady_report, write_trims_report)
 from .report.progress import PlanStep, Progress, Tee
 from .report.text import evaluation_table, format_stability, format_summary
 from .report.verdicts import format_verdicts, verdicts
-from .synth import synthesize, write_csv
-from .synth_maneuvers import check_settings, load_plan, synthesize_maneuvers
-from .variants import SLIPSTREAM, compare_variants
-from .workflow import (STAGE_DATA, STAGE_NAMES, load_data_for, run_close_loop, run_dynamic, run_steady, run_trims,
+from .synthetic.snapshots import synthesize, write_csv
+from .synthetic.maneuvers import check_settings, load_plan, synthesize_maneuvers
+from .calibration.variants import SLIPSTREAM, compare_variants
+from .calibration.workflow import (STAGE_DATA, STAGE_NAMES, load_data_for, run_close_loop, run_dynamic, run_steady, run_trims,
                        stage_plan, stage_start)
 
 
@@ -235,7 +236,7 @@ def cmd_calibrate(a) -> int:
 
 
 def _evaluate_fleet(a) -> int:
-    """``evaluate AIRCRAFT --data DIR``: every G1000 log of the folder (jsbsim_calib.fleet)."""
+    """``evaluate AIRCRAFT --data DIR``: every G1000 log of the folder (jsbsim_calib.evaluation.fleet)."""
     with _simulator(a) as sim:
         res = evaluate_fleet(sim, Path(a.data), executor=a.pool, progress=_progress(a))
     print(format_fleet(res))
@@ -320,7 +321,7 @@ def _synth_plan(a) -> int:
 
 def _close_loop_dynamic(a) -> int:
     from .calibration.closeloop_dynamic import run_close_loop_dynamic
-    from .report.closeloop_dynamic import format_result, write_close_loop_dynamic_report
+    from .report.closeloop_dynamic_report import format_result, write_close_loop_dynamic_report
     if a.skip:
         raise CalibError("close-loop --flight-test: --skip reruns stage 2a for trim data, not for time histories")
     root = Path(a.root)
@@ -383,9 +384,9 @@ def cmd_airfoil(a) -> int:
 
 
 def cmd_part60(a) -> int:
-    from .data.part60 import FAIL
-    from .part60 import evaluate_part60, load_part60_inputs
-    from .report.part60 import format_part60_table, write_part60_report
+    from .data.part60_tests import FAIL
+    from .evaluation.part60 import evaluate_part60, load_part60_inputs
+    from .report.part60_report import format_part60_table, write_part60_report
     with Simulator(Path(a.root), a.aircraft) as sim:
         inputs = load_part60_inputs(a.flight_test, sim.geometry.control_travel_file)
         ev = evaluate_part60(sim, summary=inputs.summary, time_histories=inputs.time_histories,
@@ -409,7 +410,7 @@ def _log_loading(a, sim, ds):
     """A G1000 log with the loading given on the command line and the weight estimated from the
     log (used instead of the assumption with --estimate-weight); other data unchanged."""
     from .data.logs import LogLoading, log_dataset
-    from .weight_estimate import estimate_weight, with_weight_offset
+    from .evaluation.weight_estimate import estimate_weight, with_weight_offset
     given = {k: getattr(a, k) for k in LOADING_OPTIONS if getattr(a, k, None) is not None}
     if ds.kind != "g1000":
         if given or getattr(a, "estimate_weight", False):
@@ -434,8 +435,8 @@ STAGE_NUMBERS = {"steady": "1", "trims": "2a", "dynamic": "2b"}
 def cmd_validate(a) -> int:
     from .calibration.validation import STAGE_DATA_KEYS, fold_names, stage_data, validate_steady, validate_trims
     from .calibration.validation_dynamic import dynamic_fold_names, validate_dynamic
-    from .physics_checks import run_physics_checks
-    from .report.validation import format_physics, format_validation, write_validation_report
+    from .evaluation.physics_checks import run_physics_checks
+    from .report.validation_report import format_physics, format_validation, write_validation_report
     root, say, t0 = Path(a.root), _progress(a), time.perf_counter()
     geom = load_aircraft_geometry(root, a.aircraft)
     stages = (a.stage,)
@@ -478,7 +479,7 @@ def cmd_validate(a) -> int:
 
 def cmd_slipstream(a) -> int:
     from .factors import SWITCHES
-    from .report.variants import format_comparison, write_comparison_report
+    from .report.variants_report import format_comparison, write_comparison_report
     root = Path(a.root)
     load_aircraft_geometry(root, a.aircraft)
     chosen = [v for v in SLIPSTREAM if not a.variant or v.name in a.variant]
@@ -549,7 +550,7 @@ def cmd_export(a) -> int:
 
 
 def cmd_regress(a) -> int:
-    from .regress import regress, write_baseline
+    from .evaluation.regress import regress, write_baseline
     say = _progress(a)
     if a.write_baseline:
         print(f"baseline: {write_baseline(Path(a.root), a.aircraft, Path(a.write_baseline), a.data, say)}")
@@ -826,12 +827,13 @@ def path_problems(a) -> list[Problem]:
 def _run(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise InputError("command line", Problem("--workers", f"{args.workers}: give at least 1"))
-    problems = path_problems(args) + command_problems(args)
+    problems = path_problems(args) + command_problems(args, [st.name for st in TRIM_STEPS])
     if problems:
         raise InputError("command line", problems)
     finished = False
     try:
-        with command_guard(args), make_executor(args.executor, args.workers, args.scheduler) as args.pool:
+        with command_guard(args, AircraftPaths, recover_product), \
+                make_executor(args.executor, args.workers, args.scheduler) as args.pool:
             code = args.func(args)
         finished = True
         return code
@@ -872,7 +874,7 @@ def _main(args) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(interrupted_message(args), file=sys.stderr)
+        print(interrupted_message(args, AircraftPaths, recover_product), file=sys.stderr)
         return 130
     except OSError as exc:
         if exc.filename is None:           # not a file the user named or the workbench writes: a bug

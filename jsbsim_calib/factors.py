@@ -24,7 +24,7 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from .errors import CalibError
+from .core.errors import CalibError
 
 
 @dataclass(frozen=True)
@@ -210,6 +210,17 @@ class FactorError(CalibError, ValueError):
     """A factor name is unknown or a value is outside its bounds."""
 
 
+def propeller_factor_values(factors: Mapping[str, float]) -> dict[str, float]:
+    """The propeller factors (the registry's baked factors, in its order), neutral unless
+    ``factors`` gives them: what :func:`jsbsim_calib.physics.propeller.apply_factors` bakes into
+    the tables. Values are not bounded here: the tables take any."""
+    names = [n for n, f in REGISTRY.items() if f.baked]
+    unknown = sorted(set(factors) - set(names))
+    if unknown:
+        raise FactorError(f"not propeller factors: {', '.join(unknown)}; propeller factors: {', '.join(names)}")
+    return {n: float(factors.get(n, REGISTRY[n].neutral)) for n in names}
+
+
 def factor(name: str) -> Factor:
     try:
         return REGISTRY[name]
@@ -251,7 +262,7 @@ class FactorSet(Mapping[str, float]):
     """Values of all factors (neutral unless given). Out-of-bounds values raise, never clamp.
 
     ``extra``: more factors beyond the registry (the factors of effects added to an
-    aircraft, :mod:`jsbsim_calib.effects`), with their own bounds and properties."""
+    aircraft, :mod:`jsbsim_calib.calibration.effects`), with their own bounds and properties."""
 
     def __init__(self, values: Mapping[str, float] | None = None, extra: Mapping[str, Factor] | None = None):
         self._extra = dict(extra or {})

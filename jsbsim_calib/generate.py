@@ -26,7 +26,7 @@ from typing import Callable
 
 import numpy as np
 
-from .errors import ModelError
+from .core.errors import ModelError
 from .factors import FactorSet
 from .jsbsim.aircraft import aircraft_xml, calibration_digest, declared_factors, dropped_lines, hand_edited
 from .jsbsim.product import (AircraftPaths, Propeller, aircraft_bytes, airfoil_dirs, bem_csv_text, commit_product,

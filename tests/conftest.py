@@ -62,7 +62,7 @@ def _synthetic_poh(sim, ds, indices, path: Path):
     """Rows ``indices`` of a POH dataset with their metrics replaced by what ``sim`` (at its
     current factors) trims to there, written to ``path`` and loaded back."""
     from jsbsim_calib.data.load import load_dataset
-    from jsbsim_calib.evaluate import KINDS
+    from jsbsim_calib.evaluation.evaluate import KINDS
     conds = KINDS[ds.kind].conditions(ds, sim.geometry)
     f = ds.frame.iloc[indices].copy()
     for j, i in enumerate(indices):

@@ -1,4 +1,4 @@
-"""Tests of jsbsim_calib.airfoil on the stored polars in airfoils/ (real data, physics facts)."""
+"""Tests of jsbsim_calib.physics.airfoil on the stored polars in airfoils/ (real data, physics facts)."""
 from __future__ import annotations
 
 import sys
@@ -21,7 +21,7 @@ from jsbsim_calib.physics.airfoil import (
     viterna_extend,
     write_airfoil_csv,
 )
-from jsbsim_calib.errors import DataError, GeometryError
+from jsbsim_calib.core.errors import DataError, GeometryError
 
 STORED = sorted(STORED_AIRFOILS)
 

@@ -28,7 +28,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 from jsbsim_calib.cli import main
 from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.data.timehistory import load_time_history
-from jsbsim_calib.errors import DataError, GeometryError, InputError
+from jsbsim_calib.core.errors import DataError, GeometryError, InputError
 from jsbsim_calib.physics.geometry import load_geometry
 
 REPO = Path(__file__).resolve().parents[1]

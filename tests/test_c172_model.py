@@ -23,7 +23,7 @@ from lxml import etree
 from jsbsim_calib.jsbsim.aircraft import read_factors
 from jsbsim_calib.jsbsim.propulsion import read_baked_factors
 from jsbsim_calib.factors import FACTORS, REGISTRY, FactorSet
-from jsbsim_calib.jsbsim.condition import Condition, TrimResult
+from jsbsim_calib.flight.condition import Condition, TrimResult
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.probes import Derivatives, StallCase, report, stall_speed, trim_derivatives
 

@@ -23,10 +23,10 @@ from jsbsim_calib.calibration.closeloop import close_loop
 from jsbsim_calib.calibration.loop import write_aircraft
 from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.calibration.effects import library
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import QuirkWarning
-from jsbsim_calib.synth import synthesize, write_csv
+from jsbsim_calib.synthetic.snapshots import synthesize, write_csv
 
 REPO = Path(__file__).resolve().parents[1]
 TRAVEL = REPO / "data" / "c172_control_travel.csv"
@@ -204,7 +204,7 @@ def test_written_aircraft_flies_like_the_closed_loop_model(tmp_path, clean):
 # --------------------------------------------------------------------------- real data
 @pytest.mark.slow
 def test_real_c172_trims_without_pfactor_step_find_the_yaw_effect(tmp_path):
-    from jsbsim_calib.workflow import run_close_loop
+    from jsbsim_calib.calibration.workflow import run_close_loop
     res = run_close_loop(REPO, "c172", REPO / "data" / "c172_flight_test_snapshots.csv", skip_steps=("pfactor",))
     s = res.summaries("all")
     assert res.added[:1] == ["p_factor"], [(c.effect, c.round, c.reason) for c in res.candidates]

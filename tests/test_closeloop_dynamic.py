@@ -24,15 +24,15 @@ from jsbsim_calib.calibration.loop import MIN_EVIDENCE, MIN_EXPLAINED, evidence_
 from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, acts_on, close_loop_dynamic, check_tests,
                                                         companion_factors, cross_validate, dynamic_library,
                                                         effect_axis, noise_in_scales)
-from jsbsim_calib.dynamics import CHANNEL_SCALES, load_recorded_tests
-from jsbsim_calib.errors import InputError
-from jsbsim_calib.executor import ProcessExecutor
+from jsbsim_calib.evaluation.evaluate_dynamic import CHANNEL_SCALES, load_recorded_tests
+from jsbsim_calib.core.errors import InputError
+from jsbsim_calib.core.executor import ProcessExecutor
 from jsbsim_calib.jsbsim import xml
 from jsbsim_calib.jsbsim.aircraft import EFFECT_SYSTEM_PREFIX
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Input, Maneuver, fly
-from jsbsim_calib.synth_maneuvers import NOISE, load_plan, synthesize_maneuvers
+from jsbsim_calib.synthetic.maneuvers import NOISE, load_plan, synthesize_maneuvers
 
 REPO = Path(__file__).resolve().parents[1]
 TRUTH_CN_P = -0.05          # yaw due to roll rate the truth has and the model lacks

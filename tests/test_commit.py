@@ -1,4 +1,4 @@
-"""The product's files replaced as one unit (jsbsim_calib.commit): a write killed half way
+"""The product's files replaced as one unit (jsbsim_calib.core.commit): a write killed half way
 leaves the old set or the new one after recover(); hand edits of a generated aircraft are
 refused unless --force, which keeps a backup; temporary sandboxes do not outlive their run.
 Real files, real generate, real processes killed."""
@@ -16,14 +16,14 @@ from pathlib import Path
 
 import pytest
 
-from jsbsim_calib import commit as commit_mod
 from jsbsim_calib.cli import main
-from jsbsim_calib.commit import commit, recover
+from jsbsim_calib.core import commit as commit_mod
+from jsbsim_calib.core.commit import commit, recover
+from jsbsim_calib.core.tempdirs import PREFIX, sweep_stale
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.generate import build
 from jsbsim_calib.jsbsim.product import AircraftPaths, recover_product
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.tempdirs import PREFIX, sweep_stale
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -141,7 +141,7 @@ def test_the_stages_of_one_calibrate_run_keep_one_backup_of_the_product(tmp_path
 KILLER = """
 import os, signal, sys
 from pathlib import Path
-import jsbsim_calib.commit as c
+import jsbsim_calib.core.commit as c
 from jsbsim_calib.generate import generate
 calls, real = [], os.replace
 def replace(a, b):
@@ -253,7 +253,7 @@ def test_sandboxes_do_not_outlive_their_run(generated_root, tmp_path, how):
 
 CALIBRATION_KILLER = """
 import os, signal, sys
-import jsbsim_calib.commit as c
+import jsbsim_calib.core.commit as c
 from jsbsim_calib.cli import main
 from pathlib import Path
 WRITES = (".commit-journal.json", "c172.xml", "c172_propeller.xml", "calibration.json")
@@ -335,7 +335,7 @@ def test_hand_edits_survive_calibrate_and_generate(tmp_path, capsys):
 
 def test_a_model_switch_set_by_hand_is_kept_and_said_so(tmp_path, recwarn):
     """The slipstream switches are the user's: a stage starts from the file's value and keeps it
-    (jsbsim_calib.workflow.run_steady), so the warning says it is kept and recorded, not
+    (jsbsim_calib.calibration.workflow.run_steady), so the warning says it is kept and recorded, not
     overwritten; a fitted factor set by hand is named as overwritten."""
     from jsbsim_calib.factors import switches
     from jsbsim_calib.jsbsim.aircraft import read_factors

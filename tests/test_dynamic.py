@@ -24,11 +24,11 @@ from jsbsim_calib.calibration.dynamic import (DYNAMIC_STEPS, amplitude_scale, dy
                                               identified_by, metric_residuals)
 from jsbsim_calib.data.dynamic_tests import DynamicMetric, load_dynamic_tests, parse_tolerance
 from jsbsim_calib.data.flighttest import load_control_travel
-from jsbsim_calib.dynamics import MetricResult, TestResult, evaluate_dynamic, peak_rate, phugoid, recorded, \
+from jsbsim_calib.evaluation.evaluate_dynamic import MetricResult, TestResult, evaluate_dynamic, peak_rate, phugoid, recorded, \
     steady_roll_rate
-from jsbsim_calib.errors import DataError
+from jsbsim_calib.core.errors import DataError
 from jsbsim_calib.jsbsim.aircraft import set_factor_values
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.script import SETTLE_S
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import RECORD, Hold, Input, Maneuver, export, fly

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 from jsbsim_calib.calibration.equation_error import EE_AXES, equation_error, inertia_columns, rank
-from jsbsim_calib.dynamics import load_recorded_tests
+from jsbsim_calib.evaluation.evaluate_dynamic import load_recorded_tests
 from jsbsim_calib.jsbsim.aircraft import moment_of_inertia, set_moment_of_inertia
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.xml import read, write
-from jsbsim_calib.synth_maneuvers import Plan, load_plan, synthesize_maneuvers
-from jsbsim_calib.testing import root_copy, truth_copy
+from jsbsim_calib.synthetic.maneuvers import Plan, load_plan, synthesize_maneuvers
+from jsbsim_calib.synthetic.truth import root_copy, truth_copy
 
 REPO = Path(__file__).resolve().parents[1]
 PITCH_TESTS = ("S.06", "S.07")           # phugoid, pitch pulse

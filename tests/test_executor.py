@@ -14,12 +14,12 @@ import pytest
 
 from jsbsim_calib.calibration.fit import fit
 from jsbsim_calib.calibration.points import PointSet, point_residuals
-from jsbsim_calib.dynamics import evaluate_dynamic
-from jsbsim_calib.executor import SERIAL, DaskExecutor, ProcessExecutor, make_executor
-from jsbsim_calib.errors import CalibError
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.evaluation.evaluate_dynamic import evaluate_dynamic
+from jsbsim_calib.core.executor import SERIAL, DaskExecutor, ProcessExecutor, make_executor
+from jsbsim_calib.core.errors import CalibError
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.workflow import aircraft_data, dynamic_tests
+from jsbsim_calib.calibration.workflow import aircraft_data, dynamic_tests
 
 REPO = Path(__file__).resolve().parents[1]
 A = Condition(pressure_alt_ft=5500, weight_lb=2400, ktas=110, cg_in=42.0)

@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
-from jsbsim_calib.errors import DataError
-from jsbsim_calib.executor import ProcessExecutor
-from jsbsim_calib.fleet import evaluate_fleet, format_fleet
+from jsbsim_calib.core.errors import DataError
+from jsbsim_calib.core.executor import ProcessExecutor
+from jsbsim_calib.evaluation.fleet import evaluate_fleet, format_fleet
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.testing import synthetic_fleet
+from jsbsim_calib.synthetic.truth import synthetic_fleet
 
 REPO = Path(__file__).resolve().parents[1]
 REAL = REPO / "data/g1000/log_110812_095915_KCKN.csv"

@@ -10,8 +10,8 @@ import pytest
 
 from jsbsim_calib.cli import main
 from jsbsim_calib.data.load import load_dataset
-from jsbsim_calib.evaluate import evaluate_dataset
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.evaluation.evaluate import evaluate_dataset
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.foreign import ForeignSimulator, conventions_like, foreign_simulator, read_foreign
 from jsbsim_calib.jsbsim.product import load_aircraft_geometry
 from jsbsim_calib.jsbsim.simulator import Simulator

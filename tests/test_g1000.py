@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from jsbsim_calib.errors import DataError
+from jsbsim_calib.core.errors import DataError
 from jsbsim_calib.data.g1000.parse import REQUIRED_CHANNELS, G1000DataWarning, G1000Log, read_g1000
 from jsbsim_calib.data.g1000.segments import (
     Segment,

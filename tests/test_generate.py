@@ -11,7 +11,7 @@ import pytest
 
 from jsbsim_calib.generate import generate
 from jsbsim_calib.jsbsim.product import AircraftPaths
-from jsbsim_calib.errors import GeometryError
+from jsbsim_calib.core.errors import GeometryError
 
 AIRCRAFT = ("c172", "sr20")
 

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from jsbsim_calib.calibration.workflow import run_close_loop
+from jsbsim_calib.core.errors import DataError
 from jsbsim_calib.data.load import load_dataset
-from jsbsim_calib.errors import DataError
-from jsbsim_calib.workflow import run_close_loop
 
 REPO = Path(__file__).resolve().parents[1]
 LOG = REPO / "data" / "g1000" / "log_110812_095915_KCKN.csv"

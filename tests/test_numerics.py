@@ -1,4 +1,4 @@
-"""The bounded least-squares solver (jsbsim_calib.numerics): it solves a small problem, holds a
+"""The bounded least-squares solver (jsbsim_calib.core.numerics): it solves a small problem, holds a
 bound, and refuses what it cannot solve as posed with a clear error (issue 26): a start outside
 the bounds (never clipped), lower >= upper, residuals at the start that are not finite."""
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from jsbsim_calib.numerics import ProblemError, least_squares
+from jsbsim_calib.core.numerics import ProblemError, least_squares
 
 T = np.linspace(0.0, 1.0, 7)
 Y = 0.3 + 0.5 * T

@@ -13,16 +13,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jsbsim_calib.data.part60 import (CATALOGUE, FAIL, NA, PASS, Tolerance, catalogue_test, classify_files, judge,
+from jsbsim_calib.data.part60_tests import (CATALOGUE, FAIL, NA, PASS, Tolerance, catalogue_test, classify_files, judge,
                                       load_static_cases)
 from jsbsim_calib.data.timehistory import (Configuration, SensorError, TimeHistoryMeta,
                                            trajectory_to_time_history, write_time_history)
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Hold, Input, Maneuver, fly
-from jsbsim_calib.part60 import SummaryData, evaluate_part60, load_part60_inputs, objective_verdict
-from jsbsim_calib.report.part60 import format_part60_table, write_part60_report
-from jsbsim_calib.timehistory_compare import oscillation, response_times, turning_points
+from jsbsim_calib.evaluation.part60 import SummaryData, evaluate_part60, load_part60_inputs, objective_verdict
+from jsbsim_calib.report.part60_report import format_part60_table, write_part60_report
+from jsbsim_calib.evaluation.timehistory_compare import oscillation, response_times, turning_points
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO / "data"

@@ -7,7 +7,7 @@ from types import SimpleNamespace as NS
 import numpy as np
 
 from jsbsim_calib.report import plots
-from jsbsim_calib.report.validation import fold_figure
+from jsbsim_calib.report.validation_report import fold_figure
 
 
 def _evaluation(metric: str, shift: float):

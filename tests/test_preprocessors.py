@@ -1,4 +1,4 @@
-"""Physics tests of the aerodynamic preprocessor (jsbsim_calib.aero), without JSBSim.
+"""Physics tests of the aerodynamic preprocessor (jsbsim_calib.physics.aero), without JSBSim.
 
 * lifting line: an elliptic wing has Prandtl's lift slope and induced drag;
 * strip model: a symmetric configuration has no lateral forces at zero sideslip, dihedral

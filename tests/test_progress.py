@@ -9,12 +9,12 @@ import sys
 from pathlib import Path
 
 from jsbsim_calib.calibration.fit import WorkLine
+from jsbsim_calib.calibration.workflow import recorded_start, stage_plan
 from jsbsim_calib.cli import main
 from jsbsim_calib.factors import REGISTRY, FactorSet, set_in
 from jsbsim_calib.jsbsim.aircraft import read_factors
 from jsbsim_calib.jsbsim.product import AircraftPaths, read_calibration, read_calibration_record, rounded
 from jsbsim_calib.report.progress import PlanStep, Progress
-from jsbsim_calib.workflow import recorded_start, stage_plan
 
 REPO = Path(__file__).resolve().parents[1]
 POH_CLIMB = REPO / "data" / "c172_poh_climb.csv"

@@ -1,4 +1,4 @@
-"""Physics tests of the BEM propeller model (jsbsim_calib.propeller).
+"""Physics tests of the BEM propeller model (jsbsim_calib.physics.propeller).
 
 The propeller is C172-like: McCauley 1A170E/JHA7660, 76 in diameter, 60 in
 geometric pitch, 2 blades.  Chord distribution (documented choice): chord/R
@@ -15,18 +15,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jsbsim_calib.errors import GeometryError, InputError
+from jsbsim_calib.core.errors import GeometryError, InputError
+from jsbsim_calib.factors import PROPELLER_FACTORS, propeller_factor_values
 from jsbsim_calib.physics.propeller import (
     Blade,
     BEMPoint,
     PropellerTables,
+    TABLE_FACTORS,
     SectionPolar,
     apply_factors,
     bem_point,
     helical_blade,
     propeller_tables,
 )
-from jsbsim_calib.units import IN
+from jsbsim_calib.core.units import IN
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -278,9 +280,17 @@ def test_constant_speed_tables_increase_with_blade_angle(cs_tables: PropellerTab
 # ----------------------------------------------------------------------------- calibration factors
 
 
+def test_the_tables_take_the_registrys_propeller_factors(tables: PropellerTables) -> None:
+    """physics.propeller names the factors its tables take without reading the factor registry:
+    the two lists agree, in order, and a missing value is refused."""
+    assert TABLE_FACTORS == PROPELLER_FACTORS
+    with pytest.raises(ValueError, match="K_CQ_quad"):
+        apply_factors(tables, {n: 0.0 for n in TABLE_FACTORS[:-1]})
+
+
 def test_neutral_factors_are_bitwise_identity(tables: PropellerTables, cs_tables: PropellerTables) -> None:
     for base in (tables, cs_tables):
-        out = apply_factors(base, dict())
+        out = apply_factors(base, propeller_factor_values(dict()))
         assert out.CT.tobytes() == base.CT.tobytes()
         assert out.CP.tobytes() == base.CP.tobytes()
         assert out.J.tobytes() == base.J.tobytes()
@@ -289,7 +299,7 @@ def test_neutral_factors_are_bitwise_identity(tables: PropellerTables, cs_tables
 
 
 def test_scale_doubles_exactly(tables: PropellerTables) -> None:
-    out = apply_factors(tables, dict(K_CT_scale=2.0, K_CQ_scale=0.5))
+    out = apply_factors(tables, propeller_factor_values(dict(K_CT_scale=2.0, K_CQ_scale=0.5)))
     np.testing.assert_array_equal(out.CT, 2.0 * tables.CT)
     np.testing.assert_array_equal(out.CP, 0.5 * tables.CP)
     assert out.provenance["factor.K_CT_scale"] == "2.0"
@@ -297,7 +307,7 @@ def test_scale_doubles_exactly(tables: PropellerTables) -> None:
 
 def test_shift_moves_curve(tables: PropellerTables) -> None:
     shift = 0.1                                    # two table steps
-    out = apply_factors(tables, dict(K_CT_shift=shift, K_CQ_shift=-shift))
+    out = apply_factors(tables, propeller_factor_values(dict(K_CT_shift=shift, K_CQ_shift=-shift)))
     np.testing.assert_allclose(out.CT[:-2], tables.CT[2:], atol=1e-12)
     np.testing.assert_allclose(out.CP[2:], tables.CP[:-2], atol=1e-12)
     # beyond the table: linear extrapolation by the end slope
@@ -308,7 +318,7 @@ def test_shift_moves_curve(tables: PropellerTables) -> None:
 def test_tilt_and_quad_by_hand(tables: PropellerTables) -> None:
     f = dict(J_anchor=0.6, K_CT_scale=1.1, K_CT_tilt=0.5, K_CT_quad=-2.0,
                          K_CQ_shift=0.0, K_CQ_tilt=-0.3, K_CQ_quad=1.0)
-    out = apply_factors(tables, f)
+    out = apply_factors(tables, propeller_factor_values(f))
     J = tables.J
     for Jx in (0.2, 1.0):
         i = int(np.argmin(np.abs(J - Jx)))
@@ -322,18 +332,18 @@ def test_tilt_and_quad_by_hand(tables: PropellerTables) -> None:
 
 def test_factors_on_constant_speed_tables_per_column(cs_tables: PropellerTables) -> None:
     f = dict(K_CT_shift=0.05, K_CT_scale=0.9, K_CT_tilt=0.2, K_CQ_scale=1.2, K_CQ_quad=0.4)
-    out = apply_factors(cs_tables, f)
+    out = apply_factors(cs_tables, propeller_factor_values(f))
     assert out.CT.shape == cs_tables.CT.shape and out.beta75_deg is not None
     np.testing.assert_array_equal(out.beta75_deg, cs_tables.beta75_deg)
     for k in range(cs_tables.beta75_deg.size):
         fixed = PropellerTables(J=cs_tables.J, beta75_deg=None, CT=cs_tables.CT[:, k], CP=cs_tables.CP[:, k],
                                 provenance={})
-        col = apply_factors(fixed, f)
+        col = apply_factors(fixed, propeller_factor_values(f))
         np.testing.assert_allclose(out.CT[:, k], col.CT, rtol=0, atol=1e-15)
         np.testing.assert_allclose(out.CP[:, k], col.CP, rtol=0, atol=1e-15)
     # a different output grid is allowed
     Jo = np.linspace(0.0, 1.2, 7)
-    out2 = apply_factors(cs_tables, dict(), J_out=Jo)
+    out2 = apply_factors(cs_tables, propeller_factor_values(dict()), J_out=Jo)
     np.testing.assert_array_equal(out2.J, Jo)
     assert out2.CT.shape == (7, cs_tables.beta75_deg.size)
 
@@ -351,7 +361,7 @@ def _clarky_available() -> bool:
     return hasattr(af, "load_airfoil")
 
 
-@pytest.mark.skipif(not _clarky_available(), reason="jsbsim_calib.airfoil or airfoils/clarky.csv not available")
+@pytest.mark.skipif(not _clarky_available(), reason="jsbsim_calib.physics.airfoil or airfoils/clarky.csv not available")
 def test_c172_prop_with_stored_clarky_polar() -> None:
     from jsbsim_calib.physics.airfoil import load_airfoil
 

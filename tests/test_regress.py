@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from jsbsim_calib.cli import main
-from jsbsim_calib.regress import regress, write_baseline
+from jsbsim_calib.evaluation.regress import regress, write_baseline
 
 REPO = Path(__file__).resolve().parents[1]
 FACTOR = "calibration/K_cd0_slope"

@@ -25,11 +25,11 @@ import pytest
 from jsbsim_calib.jsbsim.product import AircraftPaths
 from jsbsim_calib.calibration.steady import STEADY_NAMES, steady_factors
 from jsbsim_calib.data.schemas import METRICS
-from jsbsim_calib.evaluate import evaluate_dataset
+from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import QuirkWarning
-from jsbsim_calib.workflow import aircraft_data, run_dynamic, run_steady, run_trims
+from jsbsim_calib.calibration.workflow import aircraft_data, run_dynamic, run_steady, run_trims
 
 pytestmark = pytest.mark.slow          # the main job and whole chains: the full suite only
 

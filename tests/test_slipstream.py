@@ -19,12 +19,12 @@ import numpy as np
 import pytest
 
 from jsbsim_calib.factors import FactorSet
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
+from jsbsim_calib.generate import swirl_torque_shape
+from jsbsim_calib.jsbsim.product import load_aircraft_geometry
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.physics import slipstream as ss
 from jsbsim_calib.physics.aero.model import slipstream_geometry
-from jsbsim_calib.generate import swirl_torque_shape
-from jsbsim_calib.jsbsim.product import load_aircraft_geometry
 
 REPO = Path(__file__).resolve().parents[1]
 RHO = 1.1           # kg/m3
@@ -198,9 +198,9 @@ def test_the_slipstream_command_calibrates_a_variant_and_writes_its_report(tmp_p
 def test_the_comparison_table_has_a_column_per_variant_and_no_number_for_a_nan():
     """The slipstream report's console table (fast: no chain flown; the command's own test above
     flies one), a figure that is not a number shown as '-'."""
+    from jsbsim_calib.calibration.variants import SLIPSTREAM, VariantResult
     from jsbsim_calib.factors import FactorSet
-    from jsbsim_calib.report.variants import _cell, format_comparison, table
-    from jsbsim_calib.variants import SLIPSTREAM, VariantResult
+    from jsbsim_calib.report.variants_report import _cell, format_comparison, table
     results = [VariantResult(v, FactorSet(), {}, {}, {}, 0.0) for v in SLIPSTREAM]
     head, rows = table(results)
     assert head == ["figure"] + [v.name for v in SLIPSTREAM] and all(len(r) == len(head) for r in rows)
@@ -211,8 +211,8 @@ def test_the_comparison_table_has_a_column_per_variant_and_no_number_for_a_nan()
 def test_variants_on_a_pool_are_independent_chains_with_the_same_bits():
     """Two variants of the SR20's stage 1 (shortened) as independent tasks on a pool of two
     workers end on this process's factors, bit for bit, in the variants' order."""
-    from jsbsim_calib.executor import ProcessExecutor
-    from jsbsim_calib.variants import SLIPSTREAM, compare_variants
+    from jsbsim_calib.calibration.variants import SLIPSTREAM, compare_variants
+    from jsbsim_calib.core.executor import ProcessExecutor
     chosen = [v for v in SLIPSTREAM if v.name in ("off", "theory")]
     here = compare_variants(REPO, "sr20", chosen, stages="steady", max_nfev=3)
     with ProcessExecutor(2) as pool:

@@ -15,9 +15,9 @@ import pytest
 from jsbsim_calib.calibration.fit import fit
 from jsbsim_calib.calibration.points import PointSet, point_residuals
 from jsbsim_calib.data.load import load_dataset
-from jsbsim_calib.evaluate import evaluate_dataset
+from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.factors import FactorSet
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.probes import default_conditions, stall_speed, trim_derivatives
 

@@ -8,8 +8,8 @@ import pytest
 
 from jsbsim_calib.calibration.fit import fit
 from jsbsim_calib.calibration.points import PointSet, point_residuals
+from jsbsim_calib.core.errors import DataError
 from jsbsim_calib.data.load import load_dataset
-from jsbsim_calib.errors import DataError
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.jsbsim.simulator import Simulator
 

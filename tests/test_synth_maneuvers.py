@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from jsbsim_calib.cli import main
+from jsbsim_calib.core.errors import InputError
 from jsbsim_calib.data.timehistory import load_time_histories
-from jsbsim_calib.errors import InputError
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.synth_maneuvers import check_settings, load_plan, synthesize_maneuvers
+from jsbsim_calib.synthetic.maneuvers import check_settings, load_plan, synthesize_maneuvers
 
 REPO = Path(__file__).resolve().parents[1]
 LEVEL5_KINDS = {"climb", "longitudinal_trim", "phugoid", "pitch_pulse", "roll_pulse", "yaw_pulse", "roll_step",

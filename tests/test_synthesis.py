@@ -2,8 +2,8 @@
 cases, the written aircraft in JSBSim's runner, and the real trims and G1000 log.
 
 A truth is a copy of the committed C172 with an undeclared term written into an axis of its XML
-(:func:`jsbsim_calib.testing.truth_copy`); its data are a synthetic campaign flown by it
-(:func:`jsbsim_calib.synth.synthesize`, with measurement noise); the clean C172 then closes the
+(:func:`jsbsim_calib.synthetic.truth.truth_copy`); its data are a synthetic campaign flown by it
+(:func:`jsbsim_calib.synthetic.snapshots.synthesize`, with measurement noise); the clean C172 then closes the
 loop on them. Measured on this machine (the values the comments give) with the committed C172.
 """
 from __future__ import annotations
@@ -24,12 +24,12 @@ from jsbsim_calib.calibration.closeloop import close_loop
 from jsbsim_calib.calibration.terms import AXES, INTERPRETATIONS, LONGITUDINAL, REGRESSORS, axes_for
 from jsbsim_calib.data.flighttest import QuirkWarning
 from jsbsim_calib.data.load import load_dataset
-from jsbsim_calib.errors import ModelError
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.core.errors import ModelError
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.xml import read
 from jsbsim_calib.report.markdown import write_close_loop_report
-from jsbsim_calib.testing import (UndeclaredTerm, add_undeclared_term, root_copy, synthetic_rows, truth_copy,
+from jsbsim_calib.synthetic.truth import (UndeclaredTerm, add_undeclared_term, root_copy, synthetic_rows, truth_copy,
                                   write_climbs, write_snapshots)
 
 REPO = Path(__file__).resolve().parents[1]
@@ -185,7 +185,7 @@ def test_the_loop_on_real_data_runs_and_says_what_it_synthesized(tmp_path, data)
     aileron and rudder selects Cn ~ r b/2V, beta x Tc, flaps x Tc, which fails cross-validation
     (38 -> 425): nothing added. G1000 log: attitude_reference_offset added; synthesis on the
     remaining pitch selects CL ~ 1, alpha x Tc, rejected (BIC +100, null test p 0.46)."""
-    from jsbsim_calib.workflow import run_close_loop
+    from jsbsim_calib.calibration.workflow import run_close_loop
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", QuirkWarning)
         res = run_close_loop(REPO, "c172", REPO / "data" / data)

@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from jsbsim_calib.core.errors import DataError, InputError
 from jsbsim_calib.data.flighttest import load_control_travel
 from jsbsim_calib.data.timehistory import (CHANNELS, Configuration, TimeHistory, TimeHistoryMeta,
                                            load_time_histories, load_time_history, maneuver_from_time_history,
                                            trajectory_to_time_history, write_time_history)
-from jsbsim_calib.errors import DataError, InputError
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Input, Maneuver, fly
 
@@ -271,7 +271,7 @@ def test_pilot_windows_round_trip_into_the_replays_holds_and_bad_windows_are_nam
     """A sidecar keeps the pilot's targets and windows; the replay flies them; a bad window is
     refused by its key."""
     from jsbsim_calib.data.timehistory import _holds, pilot_windows
-    from jsbsim_calib.errors import InputError
+    from jsbsim_calib.core.errors import InputError
     from jsbsim_calib.jsbsim.trajectory import Hold
     holds = (Hold("altitude"), Hold("bank", 30.0, 1.0, 15.0))
     doc = pilot_windows(holds)

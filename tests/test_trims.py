@@ -22,10 +22,10 @@ import pytest
 from jsbsim_calib.calibration.points import Residual
 from jsbsim_calib.calibration.trims import TrimStep, trims_stage
 from jsbsim_calib.data.load import load_dataset
-from jsbsim_calib.errors import DataError
-from jsbsim_calib.evaluate import KINDS, evaluate_dataset
+from jsbsim_calib.core.errors import DataError
+from jsbsim_calib.evaluation.evaluate import KINDS, evaluate_dataset
 from jsbsim_calib.factors import FactorSet
-from jsbsim_calib.jsbsim.condition import Condition, TrimResult
+from jsbsim_calib.flight.condition import Condition, TrimResult
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import (QuirkWarning, load_control_travel, snapshot_value, to_data_sign,
                                      to_jsbsim_sign)

@@ -18,15 +18,15 @@ from jsbsim_calib.calibration.validation import (FLAG_RATIO, ErrorStat, FoldMetr
                                                  validate_steady, validate_trims)
 from jsbsim_calib.data.logs import LogLoading, log_conditions, log_dataset, log_value
 from jsbsim_calib.data.schemas import Dataset
-from jsbsim_calib.errors import DataError, InputError
-from jsbsim_calib.evaluate import PointResult, evaluate_dataset, summarize
-from jsbsim_calib.executor import ProcessExecutor
+from jsbsim_calib.core.errors import DataError, InputError
+from jsbsim_calib.evaluation.evaluate import PointResult, evaluate_dataset, summarize
+from jsbsim_calib.core.executor import ProcessExecutor
 from jsbsim_calib.factors import FactorSet
-from jsbsim_calib.jsbsim.condition import Condition
+from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.product import load_aircraft_geometry
 from jsbsim_calib.jsbsim.simulator import Simulator
-from jsbsim_calib.physics_checks import OSWALD_RANGE, PROPELLER_PEAK_RANGE, run_physics_checks
-from jsbsim_calib.weight_estimate import estimate_weight, with_weight_offset
+from jsbsim_calib.evaluation.physics_checks import OSWALD_RANGE, PROPELLER_PEAK_RANGE, run_physics_checks
+from jsbsim_calib.evaluation.weight_estimate import estimate_weight, with_weight_offset
 
 REPO = Path(__file__).resolve().parents[1]
 LOG = REPO / "data" / "g1000" / "log_110812_095915_KCKN.csv"
@@ -200,7 +200,7 @@ def physics():
 
 def test_the_physics_checks_are_printed_and_written(physics, tmp_path):
     """The validation report's physics section (fast: no refit; the command's own test flies folds)."""
-    from jsbsim_calib.report.validation import format_physics, write_validation_report
+    from jsbsim_calib.report.validation_report import format_physics, write_validation_report
     text = format_physics(physics["c172"])
     assert text.startswith("c172: physics checks") and len(text.splitlines()) == 1 + len(physics["c172"].checks()) + len(physics["c172"].notes)
     md = write_validation_report("c172", [], physics["c172"], tmp_path, "jsbsim-calib validate c172").read_text()

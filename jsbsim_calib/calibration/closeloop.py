@@ -43,9 +43,9 @@ from typing import Callable
 
 import numpy as np
 
+from ..core.executor import SERIAL
 from ..data.schemas import METRICS, Dataset
-from ..evaluate import KINDS, Evaluation, Summary, evaluate_dataset, summarize, summary_dict
-from ..executor import SERIAL
+from ..evaluation.evaluate import KINDS, Evaluation, Summary, evaluate_dataset, summarize, summary_dict
 from ..factors import FactorSet, levers
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.xml import Tree

@@ -1,15 +1,15 @@
 """Close the loop on time histories: the trim loop's method (:mod:`.closeloop`) on recorded maneuvers.
 
-:func:`close_loop_dynamic` works on recorded tests (:class:`jsbsim_calib.dynamics.RecordedTest`:
-flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.dynamics.recorded_test`):
+:func:`close_loop_dynamic` works on recorded tests (:class:`jsbsim_calib.evaluation.evaluate_dynamic.RecordedTest`:
+flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.evaluation.evaluate_dynamic.recorded_test`):
 
 1. fly every test on the model (a trim at its start, its inputs replayed) and diagnose the
    residual time history of each response channel (:func:`diagnose_channel`): bias, trend,
    the states and inputs it follows, against a noise estimate from its second differences (a
    smooth model error nearly cancels there, sensor noise does not). A channel is structured
    when its residual beyond that noise is material (a quarter of its scale,
-   :data:`jsbsim_calib.dynamics.CHANNEL_SCALES`) and more than the noise could give (a
-   chi-square test); an axis (:data:`jsbsim_calib.dynamics.AXIS_CHANNELS`) when one of its
+   :data:`jsbsim_calib.evaluation.evaluate_dynamic.CHANNEL_SCALES`) and more than the noise could give (a
+   chi-square test); an axis (:data:`jsbsim_calib.evaluation.evaluate_dynamic.AXIS_CHANNELS`) when one of its
    channels is;
 2. screen the candidates of the most structured axis by equation error (:func:`screen`,
    :mod:`.equation_error`: the model's moment at every recorded state against the moment
@@ -57,9 +57,9 @@ from scipy import stats
 
 from ..data.flighttest import load_control_travel
 from ..data.timehistory import CHANNELS
-from ..dynamics import AXIS_CHANNELS, CHANNEL_SCALES, FAIL_RESIDUAL, RecordedTest, load_recorded_tests
-from ..errors import CalibError, InputError, Problem
-from ..executor import SERIAL, Executor
+from ..evaluation.evaluate_dynamic import AXIS_CHANNELS, CHANNEL_SCALES, FAIL_RESIDUAL, RecordedTest, load_recorded_tests
+from ..core.errors import CalibError, InputError, Problem
+from ..core.executor import SERIAL, Executor
 from ..factors import FactorSet, step_factors
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.trajectory import fly

@@ -141,7 +141,7 @@ def correlates(r: np.ndarray, X: np.ndarray, names: list[str]) -> list[Correlate
 
 
 def diagnose(evaluation) -> dict[str, MetricDiagnosis]:
-    """Diagnosis of every metric of an :class:`~jsbsim_calib.evaluate.Evaluation`."""
+    """Diagnosis of every metric of an :class:`~jsbsim_calib.evaluation.evaluate.Evaluation`."""
     out = {}
     for m in evaluation.metrics:
         pts = [p for p in evaluation.points if p.trimmed and p.trim is not None and np.isfinite(p.error.get(m, np.nan))]

@@ -24,9 +24,9 @@ import numpy as np
 
 from ..data.dynamic_tests import DynamicTest
 from ..data.schemas import Dataset
-from ..errors import CalibError
-from ..executor import SERIAL, Executor
-from ..dynamics import AXIS_CHANNELS, RecordedTest, fly_test
+from ..core.errors import CalibError
+from ..core.executor import SERIAL, Executor
+from ..evaluation.evaluate_dynamic import AXIS_CHANNELS, RecordedTest, fly_test
 from ..jsbsim.trajectory import fly
 from ..factors import FactorSet, step_factors
 from ..jsbsim.simulator import Simulator

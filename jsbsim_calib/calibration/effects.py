@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
-from ..errors import ModelError
+from ..core.errors import ModelError
 from ..factors import Factor
 from ..jsbsim.xml import is_comment, parse
 

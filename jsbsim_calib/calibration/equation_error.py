@@ -38,7 +38,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .. import numerics
+from ..core import numerics
 from ..factors import FactorSet
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.trajectory import SURFACES, flap_command_per_deg, surface_command, surface_deg

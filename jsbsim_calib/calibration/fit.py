@@ -1,7 +1,7 @@
 """The fit engine every calibration stage and step shares.
 
 Factors normalized to [-1, 1] over their bounds (method 3.1.2), residuals divided by their
-tolerances, a bounded Levenberg-Marquardt (:func:`jsbsim_calib.numerics.least_squares`,
+tolerances, a bounded Levenberg-Marquardt (:func:`jsbsim_calib.core.numerics.least_squares`,
 which gives the same bits on every CPU) with a deliberate finite-difference step, a progress
 line per iteration, and a result in the lmfit manner (initial -> final, bounds, "at
 boundary" flags, standard errors where the Jacobian allows, cost, evaluations, wall time).
@@ -16,8 +16,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .. import numerics
-from ..executor import SERIAL, Executor
+from ..core import numerics
+from ..core.executor import SERIAL, Executor
 from ..factors import FactorSet
 from ..jsbsim.simulator import Simulator
 

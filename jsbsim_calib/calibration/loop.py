@@ -31,8 +31,8 @@ from typing import Callable, Mapping, Protocol, Sequence
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from ..errors import CalibError
-from ..executor import Executor
+from ..core.errors import CalibError
+from ..core.executor import Executor
 from ..factors import Factor, FactorSet
 from ..jsbsim.product import AircraftPaths, write_derived
 from ..jsbsim.simulator import Simulator

@@ -15,8 +15,8 @@ from typing import Sequence
 import numpy as np
 
 from ..data.schemas import METRICS, Dataset
-from ..evaluate import KINDS
-from ..jsbsim.condition import Condition, TrimResult
+from ..evaluation.evaluate import KINDS
+from ..flight.condition import Condition, TrimResult
 from ..jsbsim.simulator import Simulator
 
 FAIL_PENALTY = 20.0          # per failed trim (method eq. 3.33)

@@ -9,8 +9,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from ..core.executor import SERIAL, Executor
 from ..data.schemas import Dataset
-from ..executor import SERIAL, Executor
 from ..factors import SWITCHES, FactorSet, set_in, step_factors
 from ..jsbsim.simulator import Simulator
 from .fit import MAX_NFEV, FitResult, fit

@@ -37,7 +37,7 @@ the sensitivity of each row to each term's coefficient. :func:`linearize` builds
 :func:`select` and :func:`null_test` work on it alone (``null_test(..., mode="flip")`` where the
 rows of a group are correlated, as the samples of a maneuver are).
 
-Why STLSQ in numpy (with :mod:`jsbsim_calib.numerics`) rather than scikit-learn or pysindy:
+Why STLSQ in numpy (with :mod:`jsbsim_calib.core.numerics`) rather than scikit-learn or pysindy:
 the problem is tiny (tens of candidates, a few hundred rows), and the selection is a
 discontinuous function of its inputs; scikit-learn's solvers call OpenBLAS, whose kernels
 differ by CPU in their last bits, so a threshold could fall differently on another machine.
@@ -52,8 +52,8 @@ from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from .. import numerics
-from ..errors import ModelError
+from ..core import numerics
+from ..core.errors import ModelError
 from ..factors import Factor
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.xml import comment, element, fmt, parse, sub, tostring, tree

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..errors import ModelError
+from ..core.errors import ModelError
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..data.schemas import Dataset
-from ..executor import SERIAL, Executor
+from ..core.executor import SERIAL, Executor
 from ..factors import FactorSet, step_factors
 from ..jsbsim.simulator import Simulator
 from .fit import MAX_NFEV, PRIOR_WEIGHT, FitResult, fit

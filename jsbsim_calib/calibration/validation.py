@@ -37,9 +37,9 @@ import pandas as pd
 from ..data.flighttest import QuirkWarning
 from ..data.load import load_dataset
 from ..data.schemas import METRICS, Dataset
-from ..errors import InputError, ModelError
-from ..executor import SERIAL, Executor
-from ..evaluate import MetricSummary, PointResult, evaluate_dataset, summarize
+from ..core.errors import InputError, ModelError
+from ..core.executor import SERIAL, Executor
+from ..evaluation.evaluate import MetricSummary, PointResult, evaluate_dataset, summarize
 from ..factors import FactorSet
 from ..jsbsim.product import AircraftPaths, load_aircraft_geometry
 from ..jsbsim.simulator import Simulator

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..data.dynamic_tests import DynamicTest, aircraft_dynamic_tests
 from ..data.flighttest import QuirkWarning
-from ..dynamics import MetricResult, evaluate_dynamic
+from ..evaluation.evaluate_dynamic import MetricResult, evaluate_dynamic
 from ..factors import FactorSet
 from ..jsbsim.product import AircraftPaths, load_aircraft_geometry, read_calibration
 from ..jsbsim.simulator import Simulator

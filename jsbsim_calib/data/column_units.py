@@ -19,7 +19,7 @@ import re
 import numpy as np
 import pandas as pd
 
-from ..errors import Problem
+from ..core.errors import Problem
 
 M_FT = 3.280839895
 # dimension -> unit as written (lower case) -> (scale, offset) to the schema's unit

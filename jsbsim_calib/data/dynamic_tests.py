@@ -34,8 +34,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, ModelError, Problem
-from ..jsbsim.condition import Condition
+from ..core.errors import DataError, ModelError, Problem
+from ..flight.condition import Condition
 from ..jsbsim.trajectory import Input, Maneuver
 from ..physics.geometry import AircraftGeometry
 from .flighttest import SNAPSHOT_INPUTS, ControlAxis, load_control_travel, to_jsbsim_sign

@@ -30,10 +30,10 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import DataError, Problem
+from ..core.errors import DataError, Problem
+from ..core.units import FT, KT, LBM
 from ..physics.atmosphere import C_TO_K, isa_pressure, isa_temperature_c, kcas_from_kias, tas_to_cas
 from ..physics.geometry import AircraftGeometry
-from ..units import FT, KT, LBM
 
 WEIGHT_REFUSE_FACTOR = 1.25      # rows heavier than this x the maximum weight are refused
 CEILING_MARGIN_FT = 3000.0       # rows more than this above the service ceiling are refused

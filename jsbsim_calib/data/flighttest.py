@@ -45,8 +45,8 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, Problem
-from ..jsbsim.condition import Condition, TrimResult
+from ..core.errors import DataError, Problem
+from ..flight.condition import Condition, TrimResult
 from .schemas import Column, Dataset, Schema, duplicate_rows, read_csv_checked, reference_columns, validate_frame
 
 # data sign = DATA_SIGN * JSBSim sign (and back: the map is its own inverse)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import DataError, Problem, raise_if
+from ..core.errors import DataError, Problem, raise_if
 from .column_units import declared_units, unit_problems
 from .envelope import check_envelope
 from .flighttest import load_flight_test

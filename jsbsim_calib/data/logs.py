@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, InputError, Problem, raise_if
-from ..jsbsim.condition import Condition, TrimResult
+from ..core.errors import DataError, InputError, Problem, raise_if
+from ..core.units import IN, LBM
+from ..flight.condition import Condition, TrimResult
 from ..physics.geometry import AircraftGeometry
-from ..units import IN, LBM
 from .g1000.parse import read_g1000
 from .g1000.segments import SegmentCriteria, WeightAssumption, extract_segments, segments_dataframe
 from .schemas import Dataset, temperature_problems

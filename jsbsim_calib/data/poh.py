@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..jsbsim.condition import Condition, TrimResult
+from ..flight.condition import Condition, TrimResult
 from ..physics.atmosphere import kcas_from_kias
 from ..physics.geometry import AircraftGeometry
 from .schemas import Column, Dataset, Schema, reference_columns, validate_frame

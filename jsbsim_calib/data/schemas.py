@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, Problem
+from ..core.errors import DataError, Problem
 from ..physics.atmosphere import isa_temperature_c
 from .spreadsheet import read_sheet
 

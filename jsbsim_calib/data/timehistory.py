@@ -18,7 +18,7 @@ pitch_pulse, ...), ``aircraft``, ``configuration`` {``weight_lb``, ``cg_in``, ``
 :mod:`jsbsim_calib.jsbsim.pilot`) and optional ``notes``. Unknown keys are errors.
 
 :func:`load_time_history` validates both files up front and raises one
-:class:`~jsbsim_calib.errors.DataError` listing every problem with its file, CSV line (row)
+:class:`~jsbsim_calib.core.errors.DataError` listing every problem with its file, CSV line (row)
 and column, or JSON key. :func:`write_time_history` writes fixed precision per channel
 (:attr:`Channel.decimals`): the same data give the same bytes. :func:`maneuver_from_time_history`
 turns a record into a :class:`~jsbsim_calib.jsbsim.trajectory.Maneuver` that replays its inputs
@@ -38,8 +38,8 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, InputError, Problem
-from ..jsbsim.condition import Condition
+from ..core.errors import DataError, InputError, Problem
+from ..flight.condition import Condition
 from ..jsbsim.pilot import AXIS_OF_LOOP
 from ..jsbsim.trajectory import Hold, Input, Maneuver, Trajectory
 from .spreadsheet import read_sheet

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
-from ..errors import CalibError, ModelError
+from ..core.errors import CalibError, ModelError
 from ..jsbsim.product import AircraftPaths
 
 KT_TO_FPS = 1852.0 / 3600.0 / 0.3048

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from xml.sax.saxutils import escape
 
-from ..errors import ModelError
+from ..core.errors import ModelError
 from ..jsbsim.product import AircraftPaths
 from ..jsbsim.xml import read, write_bytes
 

@@ -19,12 +19,12 @@ from typing import Mapping
 import numpy as np
 
 from .. import __version__
-from ..errors import AircraftFileError, ModelError, Problem
+from ..core.errors import AircraftFileError, ModelError, Problem
 from ..factors import FACTORS, REGISTRY, FactorSet
 from ..physics.aero.model import AeroModel
 from ..physics.engine import PistonParams
 from ..physics.geometry import AircraftGeometry
-from ..units import FT, LB_PER_GAL_AVGAS, LBF, LBM, SLUG, US_GAL
+from ..core.units import FT, LB_PER_GAL_AVGAS, LBF, LBM, SLUG, US_GAL
 from . import equations
 from .equations import AILERON, ELEVATOR, FLAP, M2_TO_FT2, RUDDER
 from .pilot import OUTPUTS as PILOT_OUTPUTS, pilot_system, throttle_channel

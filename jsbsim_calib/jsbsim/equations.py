@@ -16,10 +16,10 @@ import math
 from dataclasses import dataclass
 from typing import Union
 
+from ..core.units import FT
 from ..physics.aero.model import AeroModel, Table
 from ..physics.engine import PistonParams
 from ..physics.geometry import AircraftGeometry
-from ..units import FT
 
 HP_FTLBF_S = 550.0            # [ft lbf/s per hp]
 

@@ -39,14 +39,14 @@ from pathlib import Path
 import jsbsim
 import numpy as np
 
-from ..errors import ModelError, TrimError
+from ..core.errors import ModelError, TrimError
 from ..factors import FactorSet
-from ..tempdirs import make_dir
+from ..core.tempdirs import make_dir
 from ..physics.geometry import (AircraftGeometry, ControlSurface, MassSpec, MassStation, Operations, PropellerSpec,
                                 ReferenceSpec, Tank)
-from ..units import FT, HP, IN, LB_PER_GAL_AVGAS, LBM, US_GAL
+from ..core.units import FT, HP, IN, LB_PER_GAL_AVGAS, LBM, US_GAL
 from .aircraft import add_trim_aid
-from .condition import Condition, TrimResult
+from ..flight.condition import Condition, TrimResult
 from .probes import StallCase, default_conditions, default_stall_cases
 from .product import AircraftPaths, load_aircraft_geometry
 from .simulator import Simulator

@@ -42,10 +42,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..errors import TrimError
+from ..core.errors import TrimError
+from ..core.units import FT, KT
+from ..flight.condition import Condition, TrimResult
 from ..physics.atmosphere import isa_temperature, kias_from_kcas
-from ..units import FT, KT
-from .condition import Condition, TrimResult
 from .simulator import Simulator
 from .trim import set_atmosphere
 

@@ -12,7 +12,7 @@ tables, each file written atomically. The product, the calibration sandbox, a ca
 aircraft and a close-loop aircraft are all written through it.
 
 The product's files change together: :func:`write_calibrated` (and ``generate``) replace
-them as one unit through :mod:`jsbsim_calib.commit` (temporary files, a journal, renames; the
+them as one unit through :mod:`jsbsim_calib.core.commit` (temporary files, a journal, renames; the
 replaced files backed up to ``aircraft/<name>/backup/``, the last :data:`BACKUPS_KEPT`), and
 every reader calls :func:`recover_product` first, so a killed write leaves the old set or
 the new one. :func:`check_consistent` refuses a set whose aircraft file was written from
@@ -32,9 +32,9 @@ from typing import Mapping
 import numpy as np
 
 from .. import __version__
-from ..commit import commit, recover
-from ..errors import AircraftFileError, ModelError, Problem
-from ..factors import REGISTRY, FactorError, FactorSet
+from ..core.commit import commit, recover
+from ..core.errors import AircraftFileError, ModelError, Problem
+from ..factors import REGISTRY, FactorError, FactorSet, propeller_factor_values
 from ..physics.airfoil import AIRFOIL_DIR
 from ..physics.geometry import AircraftGeometry, load_geometry
 from ..physics.propeller import PropellerTables, apply_factors
@@ -121,7 +121,7 @@ class AircraftPaths:
 
 
 def recover_product(paths: AircraftPaths) -> str | None:
-    """Finish or roll back an interrupted write of the aircraft's files (:func:`jsbsim_calib.commit.recover`)."""
+    """Finish or roll back an interrupted write of the aircraft's files (:func:`jsbsim_calib.core.commit.recover`)."""
     if not paths.folder.is_dir():
         return None
     done = recover(paths.journal, paths.product_files)
@@ -230,7 +230,7 @@ def parse_bem_csv(text: str, source: str = "propeller_bem.csv") -> PropellerTabl
 
 def propeller_tables(paths: AircraftPaths, factors: FactorSet) -> PropellerTables:
     """The aircraft's propeller tables with the propeller factors of ``factors`` (BEM breakpoints)."""
-    return apply_factors(read_bem_csv(paths.propeller_bem), factors.propeller())
+    return apply_factors(read_bem_csv(paths.propeller_bem), propeller_factor_values(factors.propeller()))
 
 
 # --------------------------------------------------------------------------- writing an aircraft
@@ -350,7 +350,7 @@ def warn_hand_set(paths: AircraftPaths, hand: list[FactorChange], what: str, kep
 
 def commit_product(paths: AircraftPaths, files: Mapping[Path, bytes], run: str | None = None):
     """Replace the product's ``files`` as one unit, backing up the replaced ones (``run``: one
-    backup for all the commits of a run, :func:`jsbsim_calib.commit.commit`)."""
+    backup for all the commits of a run, :func:`jsbsim_calib.core.commit.commit`)."""
     return commit(files, paths.journal, backup=paths.backups, keep=BACKUPS_KEPT, run=run)
 
 
@@ -361,7 +361,7 @@ def write_calibrated(root: Path | str, name: str, factors: FactorSet, stage: str
     the calibration record. A factor whose value in the file differs from calibration.json
     (set by hand) is named in a warning, as overwritten or (a model switch, a factor the stage
     does not fit) as kept and recorded; the replaced files are
-    backed up (``run``, :func:`jsbsim_calib.commit.new_run`: the writes of one run keep one
+    backed up (``run``, :func:`jsbsim_calib.core.commit.new_run`: the writes of one run keep one
     backup, the product as it stood before the run). A steady-stage result starts a new
     record (the flight-test stage builds on it and must be rerun)."""
     paths = AircraftPaths(Path(root), name)

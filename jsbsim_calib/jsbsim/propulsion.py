@@ -9,12 +9,12 @@ from typing import Mapping
 
 import numpy as np
 
-from ..errors import AircraftFileError, Problem
-from ..factors import FactorSet
+from ..core.errors import AircraftFileError, Problem
+from ..factors import FactorSet, propeller_factor_values
 from ..physics.engine import MIXTURE_FAR, PistonParams, mixture_efficiency
 from ..physics.geometry import AircraftGeometry, PropellerSpec
 from ..physics.propeller import PropellerTables, apply_factors
-from ..units import FT, IN, SLUG
+from ..core.units import FT, IN, SLUG
 from .xml import FACTOR_DIGITS, Tree, comment, comments, data_table, decimals_for, element, fmt, fmt_fixed, read, sub, tree
 
 # breakpoints of the baked JSBSim tables: finer than the BEM grid, so that JSBSim's linear
@@ -87,7 +87,7 @@ def propeller_tree(geom: AircraftGeometry, base: PropellerTables, factors: Facto
     """The propeller file of ``aircraft``: the neutral BEM tables ``base`` with the propeller
     factors of ``factors`` baked in, on the :data:`J_TABLE` breakpoints."""
     pf = factors.propeller()
-    tables = apply_factors(base, pf, J_out=J_TABLE)
+    tables = apply_factors(base, propeller_factor_values(pf), J_out=J_TABLE)
     p = geom.propeller
     note = (f"{p.model}: {p.diameter_m / IN:g} in diameter, {p.blades} blades; blade-element momentum tables "
             f"(Prandtl tip/hub loss, {p.airfoil} sections, {BEM_RPM:g} rpm) from aircraft/{aircraft}/geometry.toml")

@@ -16,15 +16,15 @@ from typing import Mapping
 
 import jsbsim
 
-from ..errors import AircraftFileError, ModelError, Problem, raise_if
+from ..core.errors import AircraftFileError, ModelError, Problem, raise_if
 from ..factors import PROPELLER_FACTORS, REGISTRY, FactorSet
 from ..physics.mass import loading
-from ..tempdirs import make_dir
+from ..core.tempdirs import make_dir
 from . import trim as trim_solver
 from .aircraft import (add_effect, add_trim_aid, declared_factors, effect_constants, effect_property_values,
                        effect_values, moment_of_inertia, set_effect_values, set_factor_values,
                        set_moment_of_inertia)
-from .condition import Condition, TrimResult
+from ..flight.condition import Condition, TrimResult
 from .product import (AircraftPaths, Propeller, check_consistent, load_aircraft_geometry, propeller_bytes,
                       read_bem_csv, recover_product, write_aircraft)
 from .propulsion import read_baked_factors

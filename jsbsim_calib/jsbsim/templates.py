@@ -2,10 +2,10 @@
 at 5,500 ft and 110 KTAS and 60 s of flight hands off, for JSBSim's own runner."""
 from __future__ import annotations
 
+from ..core.units import FT, KT
 from ..physics.atmosphere import density, isa_pressure, isa_temperature
 from ..physics.geometry import AircraftGeometry, PropellerSpec
 from ..physics.propeller import PropellerTables, blade_angle_absorbing
-from ..units import FT, KT
 
 CRUISE_ALTITUDE_FT = 5500.0
 CRUISE_KTAS = 110.0

@@ -23,8 +23,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from ..errors import ModelError, TrimError
-from .condition import Condition, TrimResult
+from ..core.errors import ModelError, TrimError
+from ..flight.condition import Condition, TrimResult
 from .pilot import AXIS_OF_LOOP, MEASURED, MODE_OF_LOOP, TARGETS
 from .script import INTEGRATORS, SETTLE_S, Ramp, RampPlayer, ScriptSpec, Setting, init_tree, output_tree, script_tree
 from .xml import tostring, write

@@ -24,13 +24,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import root
 
-from .. import numerics
-from ..errors import TrimError
+from ..core import numerics
+from ..core.errors import TrimError
+from ..core.units import FT, G0, HP, KT, LAPSE, T0
+from ..flight.condition import Condition, TrimResult
 from ..physics.atmosphere import isa_pressure, isa_temperature
 from ..physics.engine import poh_mixture
 from ..physics.geometry import AircraftGeometry
-from ..units import FT, G0, HP, KT, LAPSE, T0
-from .condition import Condition, TrimResult
 
 G_FT = G0 / FT
 R_EARTH_FT = 20925646.325  # JSBSim's reference radius for geopotential altitude (ft)

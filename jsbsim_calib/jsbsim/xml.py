@@ -24,8 +24,8 @@ from typing import Sequence
 import numpy as np
 from lxml import etree
 
-from ..errors import ModelError
-from ..units import IN
+from ..core.errors import ModelError
+from ..core.units import IN
 
 NUMBER_DIGITS = 6
 TABLE_DIGITS = 6

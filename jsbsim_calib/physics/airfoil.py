@@ -31,7 +31,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..errors import CalibError, DataError, GeometryError, Problem, raise_if
+from ..core.errors import CalibError, DataError, GeometryError, Problem, raise_if
 
 __all__ = [
     "AIRFOIL_DIR",

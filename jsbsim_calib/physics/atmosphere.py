@@ -24,7 +24,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..units import FT, GAMMA, LAPSE, P0, R_AIR, T0, G0, KT
+from ..core.units import FT, GAMMA, LAPSE, P0, R_AIR, T0, G0, KT
 
 _H_TROP = 11000.0                       # [m] tropopause (geopotential)
 _T_TROP = T0 - LAPSE * _H_TROP          # [K]

@@ -29,7 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import brentq
 
-from ..units import FT, HP, IN, INHG, P0, T0
+from ..core.units import FT, HP, IN, INHG, P0, T0
 from .atmosphere import isa_pressure, isa_temperature, pressure_altitude
 from .geometry import EngineSpec
 

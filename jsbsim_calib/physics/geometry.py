@@ -16,8 +16,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import GeometryError, Problem
-from ..units import UNITS
+from ..core.errors import GeometryError, Problem
+from ..core.units import UNITS
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import TrimError
-from ..units import IN, LB_PER_GAL_AVGAS, LBM, US_GAL
+from ..core.errors import TrimError
+from ..core.units import IN, LB_PER_GAL_AVGAS, LBM, US_GAL
 from .geometry import AircraftGeometry
 
 PAYLOAD_STATIONS_IN = (-60.0, 200.0)   # [in] where a payload point mass can plausibly sit

@@ -83,8 +83,7 @@ from typing import Callable, Mapping, Protocol, Sequence, runtime_checkable
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from ..errors import GeometryError, Problem, raise_if
-from ..factors import REGISTRY, FactorError
+from ..core.errors import GeometryError, Problem, raise_if
 
 __all__ = [
     "SectionPolar",
@@ -665,6 +664,10 @@ def propeller_tables(
 
 
 # --------------------------------------------------------------------------- calibration factors
+# the factors the tables take, by name (the factor registry's baked factors,
+# jsbsim_calib.factors.PROPELLER_FACTORS; this module does not read the registry)
+TABLE_FACTORS = ("J_anchor", "K_CT_shift", "K_CT_scale", "K_CT_tilt", "K_CT_quad",
+                 "K_CQ_shift", "K_CQ_scale", "K_CQ_tilt", "K_CQ_quad")
 
 
 def _interp_extrap(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
@@ -697,20 +700,11 @@ def _apply_curve(J_base: np.ndarray, C: np.ndarray, J_out: np.ndarray, same_J: b
     return base[:, 0] if C.ndim == 1 else base
 
 
-def propeller_factor_values(factors: Mapping[str, float]) -> dict[str, float]:
-    """The propeller factors (the registry's baked factors, in its order), neutral unless
-    ``factors`` gives them. Values are not bounded here: the tables take any."""
-    names = [n for n, f in REGISTRY.items() if f.baked]
-    unknown = sorted(set(factors) - set(names))
-    if unknown:
-        raise FactorError(f"not propeller factors: {', '.join(unknown)}; propeller factors: {', '.join(names)}")
-    return {n: float(factors.get(n, REGISTRY[n].neutral)) for n in names}
-
-
 def apply_factors(base: PropellerTables, factors: Mapping[str, float],
                   J_out: Sequence[float] | np.ndarray | None = None) -> PropellerTables:
-    """Calibrated tables from the BEM ``base`` tables and the propeller factors (by name,
-    neutral where not given: :func:`propeller_factor_values`).
+    """Calibrated tables from the BEM ``base`` tables and the propeller factors: a value for
+    every name of :data:`TABLE_FACTORS` (:func:`jsbsim_calib.factors.propeller_factor_values`
+    gives them, neutral where a calibration gives none); each is recorded in the provenance.
 
     Thrust: ``J' = J + K_CT_shift``,
     ``CT'(J) = K_CT_scale * CT(J') * (1 + K_CT_tilt (J' - J_anchor) + K_CT_quad (J' - J_anchor)^2)``
@@ -721,7 +715,10 @@ def apply_factors(base: PropellerTables, factors: Mapping[str, float],
     ``J_out`` gives the output breakpoints (default: those of ``base``).
     Neutral factors on the base breakpoints return the base values bitwise.
     """
-    f = propeller_factor_values(factors)
+    missing = [n for n in TABLE_FACTORS if n not in factors]
+    if missing:
+        raise ValueError(f"apply_factors: no value for {', '.join(missing)}")
+    f = factors
     same_J = J_out is None
     Jo = base.J if J_out is None else np.asarray(J_out, dtype=float)
     if not same_J and Jo.shape == base.J.shape and np.array_equal(Jo, base.J):

@@ -10,10 +10,10 @@ import numpy as np
 import pandas as pd
 
 from ..calibration.diagnose import REGRESSORS
+from ..calibration.workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
 from ..factors import REGISTRY
-from ..workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
 from . import plots
-from .synthesis import synthesis_section
+from .synthesis_section import synthesis_section
 from .text import format_summary
 
 JSBSIM_VERSION = version("jsbsim")
@@ -333,7 +333,7 @@ def model_table(evaluation) -> pd.DataFrame:
 
 def write_log_report(evaluation, out_dir: Path, weight_estimate=None) -> tuple[Path, Path]:
     """A figure of the log with its segments and the model, and a Markdown table (and the weight
-    estimated from the log, :class:`jsbsim_calib.weight_estimate.WeightEstimate`, when given)."""
+    estimated from the log, :class:`jsbsim_calib.evaluation.weight_estimate.WeightEstimate`, when given)."""
     ds = evaluation.dataset
     out_dir.mkdir(parents=True, exist_ok=True)
     stem = ds.path.stem if ds.path.stem.startswith("log") else f"log_{ds.path.stem}"

@@ -6,7 +6,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..evaluate import KINDS, Evaluation, MetricSummary
+from ..evaluation.evaluate import KINDS, Evaluation, MetricSummary
 from ..jsbsim.probes import StabilityReport
 
 

@@ -72,7 +72,7 @@ class Verdict:
 
 def verdicts(summaries: Mapping[str, Mapping[str, Mapping]], targets=TARGETS) -> list[Verdict]:
     """Verdicts of the targets whose kind and metric the summaries hold
-    (``summaries[kind][metric]``: :class:`jsbsim_calib.evaluate.MetricSummary`)."""
+    (``summaries[kind][metric]``: :class:`jsbsim_calib.evaluation.evaluate.MetricSummary`)."""
     out = []
     for t in targets:
         s = summaries.get(t.kind, {}).get(t.metric)

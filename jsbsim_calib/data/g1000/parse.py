@@ -35,7 +35,7 @@ from typing import IO, Any
 import numpy as np
 import pandas as pd
 
-from ...errors import DataError, Problem
+from ...core.errors import DataError, Problem
 from ..spreadsheet import decode
 
 __all__ = [

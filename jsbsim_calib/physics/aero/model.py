@@ -11,7 +11,7 @@ The chain (each step a function, all in SI):
 5. ``body_tables``      fuselage and drag items (empirical, :mod:`.body`).
 
 ``build_aero`` runs them in order and returns an :class:`AeroModel`: named tables and
-constants that :mod:`jsbsim_calib.xmlmodel` writes into the aircraft file.
+constants that :mod:`jsbsim_calib.jsbsim.aircraft` writes into the aircraft file.
 """
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ import numpy as np
 from ..atmosphere import density, isa_pressure, isa_temperature, viscosity
 from ..geometry import AircraftGeometry
 from ..slipstream import FREE_VORTEX, TC_GRID, TailGeometry, disc_area_m2, immersion_tables
-from ...units import FT, G0
+from ...core.units import FT, G0
 from . import body
 from .lifting_line import freestream_dir, influence
 from .sections import dcm_ddelta, eta_deflection, profile_drag_increment

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..core.units import FT, KT
 from ..physics.atmosphere import cas_to_tas, isa_pressure, isa_temperature
-from ..units import FT, KT
 
 MODES = {
     "level": "flight path given (vs_fpm), speed given, throttle trims",

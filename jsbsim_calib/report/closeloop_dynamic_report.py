@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 from ..calibration.loop import MATERIAL, MIN_EVIDENCE, MIN_EXPLAINED, MIN_HELD_GAIN
 from ..calibration.closeloop_dynamic import CloseLoopDynamicResult, structured_axes
 from ..data.timehistory import CHANNELS
-from ..dynamics import AXIS_CHANNELS, CHANNEL_SCALES
+from ..evaluation.evaluate_dynamic import AXIS_CHANNELS, CHANNEL_SCALES
 from . import plots
 
 REPORT = "close-loop-dynamic"

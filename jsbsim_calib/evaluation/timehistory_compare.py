@@ -3,8 +3,8 @@
 :func:`compare_time_history` replays a record on a simulator (:func:`replay_maneuver`: the
 open-loop replay of :func:`~jsbsim_calib.data.timehistory.maneuver_from_time_history` with
 the replay policy below), samples the model at the data's times (surfaces in the data's
-signs), computes the Part 60 test's metrics (:data:`jsbsim_calib.data.part60.CATALOGUE`) on
-both traces with the same functions, judges them (:func:`~jsbsim_calib.data.part60.judge`)
+signs), computes the Part 60 test's metrics (:data:`jsbsim_calib.data.part60_tests.CATALOGUE`) on
+both traces with the same functions, judges them (:func:`~jsbsim_calib.data.part60_tests.judge`)
 and adds every channel's error (model - data). The result is a :class:`TimeHistoryComparison`.
 
 Replay policy (:data:`EXAMINED_AXES`): the axes a test examines follow the recorded inputs,
@@ -31,13 +31,13 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from .data.dynamic_tests import ROLL_WINDOW_S
-from .data.flighttest import to_data_sign
-from .data.part60 import INPUT_CHANNEL, METRIC_CHANNEL, NA, MetricVerdict, Part60Test, catalogue_test, judge
-from .data.timehistory import TimeHistory, maneuver_from_time_history
-from .dynamics import peak_rate, steady_roll_rate
-from .errors import CalibError
-from .jsbsim.trajectory import RATE_HZ, Hold, Maneuver, Trajectory, fly
+from ..core.errors import CalibError
+from ..data.dynamic_tests import ROLL_WINDOW_S
+from ..data.flighttest import to_data_sign
+from ..data.part60_tests import INPUT_CHANNEL, METRIC_CHANNEL, NA, MetricVerdict, Part60Test, catalogue_test, judge
+from ..data.timehistory import TimeHistory, maneuver_from_time_history
+from ..jsbsim.trajectory import RATE_HZ, Hold, Maneuver, Trajectory, fly
+from .evaluate_dynamic import peak_rate, steady_roll_rate
 
 CHANNELS = ("pressure_alt_ft", "kcas", "ktas", "vs_fpm", "pitch_deg", "roll_deg", "heading_deg", "p_deg_s",
             "q_deg_s", "r_deg_s", "alpha_deg", "beta_deg", "nz_g", "elevator_deg", "aileron_deg", "rudder_deg",
@@ -136,7 +136,7 @@ def response_times(t: np.ndarray, x: np.ndarray, start_s: float) -> tuple[float,
 
 def signed_peak(t: np.ndarray, x: np.ndarray, start_s: float, sign: float | None = None) -> float:
     """The largest change from the value at ``start_s``, signed; ``sign`` fixes the direction
-    (a response the other way is then negative): :func:`jsbsim_calib.dynamics.peak_rate`."""
+    (a response the other way is then negative): :func:`jsbsim_calib.evaluation.evaluate_dynamic.peak_rate`."""
     if not math.isfinite(start_s):
         return math.nan
     if sign is None:

@@ -15,12 +15,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping, Sequence
 
-from .calibration.effects import library
-from .calibration.terms import AXES, REGRESSORS, axis as axis_record
-from .errors import ModelError
-from .jsbsim.simulator import Simulator
-from .jsbsim.xml import Tree, comment, fmt, function, parse, read, write
-from .synth import synthesize, write_csv
+from ..calibration.effects import library
+from ..calibration.terms import AXES, REGRESSORS, axis as axis_record
+from ..core.errors import ModelError
+from ..jsbsim.simulator import Simulator
+from ..jsbsim.xml import Tree, comment, fmt, function, parse, read, write
+from .snapshots import synthesize, write_csv
 
 ROOT_FOLDERS = ("aircraft", "engine", "airfoils", "data")
 
@@ -86,7 +86,7 @@ def truth_copy(source_dir: Path, dest_dir: Path, terms: Sequence[UndeclaredTerm]
 
 
 def synthetic_rows(truth_dir: Path, root: Path, *, n: int, seed: int, noise: float = 1.0) -> list[dict]:
-    """Snapshot rows of a synthetic campaign flown by the truth (:func:`jsbsim_calib.synth.synthesize`)."""
+    """Snapshot rows of a synthetic campaign flown by the truth (:func:`jsbsim_calib.synthetic.snapshots.synthesize`)."""
     with Simulator.from_dir(truth_dir, root) as truth:
         rows, _ = synthesize(truth, n=n, seed=seed, noise=noise)
     return rows

@@ -25,16 +25,16 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .data.schemas import Dataset
+from ..core.units import FT, KT
+from ..data.schemas import Dataset
+from ..factors import FactorSet
+from ..flight.condition import Condition, TrimResult
+from ..jsbsim.probes import AeroReading
+from ..jsbsim.product import AircraftPaths, propeller_tables
+from ..jsbsim.simulator import Simulator
+from ..physics.atmosphere import isa_temperature
+from ..physics.propeller import PropellerTables
 from .evaluate import KINDS
-from .factors import FactorSet
-from .jsbsim.condition import Condition, TrimResult
-from .jsbsim.probes import AeroReading
-from .jsbsim.product import AircraftPaths, propeller_tables
-from .jsbsim.simulator import Simulator
-from .physics.atmosphere import isa_temperature
-from .physics.propeller import PropellerTables
-from .units import FT, KT
 
 WEIGHT_STEP_LB = 50.0            # central difference of the climb rate in weight
 POLAR_ALT_FT = 5000.0            # drag polar: level flight here, ISA, flaps up

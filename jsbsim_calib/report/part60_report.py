@@ -1,6 +1,6 @@
 """The Part 60 report (reports/<aircraft>/part60/): ``part60.md`` with PNG figures and one
 self-contained ``part60.html`` (the same content, figures embedded as base64 PNG), and the
-console's summary table. It draws a :class:`~jsbsim_calib.part60.Part60Evaluation`; it runs
+console's summary table. It draws a :class:`~jsbsim_calib.evaluation.part60.Part60Evaluation`; it runs
 nothing.
 
 The document is built once as blocks (headings, paragraphs, lists, tables, figures) and
@@ -24,8 +24,8 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-from ..data.part60 import FAIL, NA, PASS  # noqa: E402
-from ..part60 import CaseResult, ObjectiveTest, Part60Evaluation, TracePlot  # noqa: E402
+from ..data.part60_tests import FAIL, NA, PASS  # noqa: E402
+from ..evaluation.part60 import CaseResult, ObjectiveTest, Part60Evaluation, TracePlot  # noqa: E402
 
 JSBSIM_VERSION = version("jsbsim")
 CONVENTIONS = (

@@ -1,7 +1,7 @@
 """Synthetic flight-test time histories: a plan of maneuvers flown by a truth aircraft, written
 as format 1 (:mod:`jsbsim_calib.data.timehistory`).
 
-A plan is a TOML file (``jsbsim_calib/plans/level5.toml`` is the default, ``--plan level5``)::
+A plan is a TOML file (``jsbsim_calib/synthetic/plans/level5.toml`` is the default, ``--plan level5``)::
 
     [plan]
     name = "level5"
@@ -34,7 +34,7 @@ yaw or speed; one loop per axis, several windows allowed) hold the trimmed value
 or the trimmed value plus an ``offset``.
 
 Every plan is validated before anything flies: an unknown key, a missing key or a bad value
-is an :class:`~jsbsim_calib.errors.InputError` naming the plan file, the maneuver and the key.
+is an :class:`~jsbsim_calib.core.errors.InputError` naming the plan file, the maneuver and the key.
 """
 from __future__ import annotations
 
@@ -51,14 +51,14 @@ try:
 except ModuleNotFoundError:      # Python < 3.11
     import tomli as tomllib
 
-from .data.flighttest import load_control_travel, to_jsbsim_sign
-from .data.timehistory import (AXIS_CHANNELS, CHANNELS, MIXTURES, PILOT_AXES, Configuration, SensorError, pilot_windows,
+from ..data.flighttest import load_control_travel, to_jsbsim_sign
+from ..data.timehistory import (AXIS_CHANNELS, CHANNELS, MIXTURES, PILOT_AXES, Configuration, SensorError, pilot_windows,
                                TimeHistory, TimeHistoryMeta, load_time_history,
                                trajectory_to_time_history, write_time_history)
-from .errors import InputError, Problem
-from .jsbsim.condition import Condition
-from .jsbsim.pilot import AXIS_OF_LOOP
-from .jsbsim.trajectory import RECORD, Hold, Input, Maneuver, fly
+from ..core.errors import InputError, Problem
+from ..flight.condition import Condition
+from ..jsbsim.pilot import AXIS_OF_LOOP
+from ..jsbsim.trajectory import RECORD, Hold, Input, Maneuver, fly
 
 PLANS_DIR = Path(__file__).resolve().parent / "plans"
 DEFAULT_RATE_HZ = 10.0

@@ -2,15 +2,16 @@
 and the folders a command will write (a fit must not end, after minutes, on a folder it
 cannot write, nor write the aircraft and then fail on its report).
 
-Each check returns :class:`~jsbsim_calib.errors.Problem` s naming the option; the command
-line reports them all at once (``cli._run``).
+Each check returns :class:`~jsbsim_calib.core.errors.Problem` s naming the option; the command
+line reports them all at once (``cli._run``), and gives what the checks cannot know from here:
+the names of the steps of stage 2a (:data:`jsbsim_calib.calibration.trims.TRIM_STEPS`).
 """
 from __future__ import annotations
 
 import uuid
+from collections.abc import Sequence
 from pathlib import Path
 
-from .calibration.trims import TRIM_STEPS
 from .errors import Problem
 
 # (command, option given, option given): the second silently overrides or ignores the first
@@ -31,9 +32,8 @@ def flag_problems(a) -> list[Problem]:
             for cmd, x, y, why in CONTRADICTIONS if a.command == cmd and getattr(a, x, None) and getattr(a, y, None)]
 
 
-def skip_problems(a) -> list[Problem]:
-    """``--skip`` names that are no step of stage 2a."""
-    names = [st.name for st in TRIM_STEPS]
+def skip_problems(a, names: Sequence[str]) -> list[Problem]:
+    """``--skip`` names that are no step of stage 2a (``names``: its steps)."""
     return [Problem("--skip", f"'{s}' is no step of stage 2a; steps: {', '.join(names)}")
             for s in (getattr(a, "skip", None) or ()) if s not in names]
 
@@ -83,7 +83,8 @@ def writable_problems(a) -> list[Problem]:
     return out
 
 
-def command_problems(a) -> list[Problem]:
-    """Every problem of a command line that can be found before any work."""
-    return flag_problems(a) + skip_problems(a) + writable_problems(a)
+def command_problems(a, trim_steps: Sequence[str]) -> list[Problem]:
+    """Every problem of a command line that can be found before any work (``trim_steps``: the
+    names of the steps of stage 2a)."""
+    return flag_problems(a) + skip_problems(a, trim_steps) + writable_problems(a)
 

@@ -17,25 +17,25 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from .calibration.closeloop import CloseLoopResult, close_loop
-from .calibration.dynamic import DYNAMIC_STEPS, DynamicStep, dynamic_stage
-from .calibration.fit import MAX_NFEV, FitResult
-from .calibration.points import stage1_subset
-from .calibration.steady import STAGE1_STEPS, steady_stage
-from .calibration.trims import TRIM_STEPS, TrimStep, trims_stage
-from .data.dynamic_tests import DynamicTest, aircraft_dynamic_tests
-from .data.flighttest import QuirkWarning
-from .data.load import load_dataset
-from .data.schemas import Dataset
-from .dynamics import DynamicEvaluation, evaluate_dynamic
-from .errors import InputError, ModelError, Problem
-from .executor import SERIAL, Executor
-from .evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
-from .factors import FactorSet, switches
-from .jsbsim.probes import AeroCurves, aero_curves
-from .jsbsim.product import AircraftPaths, load_aircraft_geometry, propeller_tables, read_calibration_record
-from .jsbsim.simulator import Simulator
-from .physics.propeller import PropellerTables
+from .closeloop import CloseLoopResult, close_loop
+from .dynamic import DYNAMIC_STEPS, DynamicStep, dynamic_stage
+from .fit import MAX_NFEV, FitResult
+from .points import stage1_subset
+from .steady import STAGE1_STEPS, steady_stage
+from .trims import TRIM_STEPS, TrimStep, trims_stage
+from ..data.dynamic_tests import DynamicTest, aircraft_dynamic_tests
+from ..data.flighttest import QuirkWarning
+from ..data.load import load_dataset
+from ..data.schemas import Dataset
+from ..evaluation.evaluate_dynamic import DynamicEvaluation, evaluate_dynamic
+from ..core.errors import InputError, ModelError, Problem
+from ..core.executor import SERIAL, Executor
+from ..evaluation.evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
+from ..factors import FactorSet, switches
+from ..jsbsim.probes import AeroCurves, aero_curves
+from ..jsbsim.product import AircraftPaths, load_aircraft_geometry, propeller_tables, read_calibration_record
+from ..jsbsim.simulator import Simulator
+from ..physics.propeller import PropellerTables
 
 
 @dataclass

@@ -20,11 +20,11 @@ from typing import Sequence
 
 import numpy as np
 
-from .data.logs import log_conditions, log_value
-from .data.schemas import Dataset
-from .errors import DataError
-from .jsbsim.condition import Condition
-from .jsbsim.simulator import Simulator
+from ..core.errors import DataError
+from ..data.logs import log_conditions, log_value
+from ..data.schemas import Dataset
+from ..flight.condition import Condition
+from ..jsbsim.simulator import Simulator
 
 METHODS = {"rpm": "level-flight RPM (power required against weight)",
            "pitch": "level-flight pitch attitude (confounded with an attitude-reference offset)"}

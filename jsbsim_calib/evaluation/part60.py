@@ -1,12 +1,12 @@
 """The Part 60 objective tests of a model: every Level 5 test (and the supplemental ones the
 flight-test package holds), flown and judged, as a typed result; nothing is written here
-(:mod:`jsbsim_calib.report.part60` writes the report).
+(:mod:`jsbsim_calib.report.part60_report` writes the report).
 
 Sources, any or all: the flight-test summary file (results + snapshots: climbs and trims are
-trimmed, the engine acceleration and the dynamic tests are flown, :mod:`.data.part60`,
-:mod:`.data.dynamic_tests`) and flight-test time histories (each flown from its recorded
+trimmed, the engine acceleration and the dynamic tests are flown, :mod:`..data.part60_tests`,
+:mod:`..data.dynamic_tests`) and flight-test time histories (each flown from its recorded
 initial condition with its recorded inputs, :mod:`.timehistory_compare`). Every catalogue test
-(:data:`.data.part60.CATALOGUE`) gets a verdict: PASS, FAIL, or n/a with the reason (the model
+(:data:`..data.part60_tests.CATALOGUE`) gets a verdict: PASS, FAIL, or n/a with the reason (the model
 cannot do the test, no data for it, a tolerance the evaluator judges). A NaN never passes.
 """
 from __future__ import annotations
@@ -18,18 +18,18 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicTest,
+from ..data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicTest,
                                  load_dynamic_tests)
-from .data.flighttest import load_control_travel, to_data_sign
-from .data.part60 import (CATALOGUE, CATALOGUE_BY_ID, ENGINE_STEP_S, FAIL, NA, PASS, MetricVerdict, Part60Test,
+from ..data.flighttest import load_control_travel, to_data_sign
+from ..data.part60_tests import (CATALOGUE, CATALOGUE_BY_ID, ENGINE_STEP_S, FAIL, NA, PASS, MetricVerdict, Part60Test,
                           StaticCase, catalogue_test, classify_files, combine, engine_maneuver, judge,
                           load_static_cases, snapshot_values)
-from .data.timehistory import load_time_histories
-from .dynamics import fly_test
-from .errors import CalibError, DataError, Problem
-from .jsbsim.condition import Condition, TrimResult
-from .jsbsim.simulator import Simulator
-from .jsbsim.trajectory import Trajectory, fly
+from ..data.timehistory import load_time_histories
+from .evaluate_dynamic import fly_test
+from ..core.errors import CalibError, DataError, Problem
+from ..flight.condition import Condition, TrimResult
+from ..jsbsim.simulator import Simulator
+from ..jsbsim.trajectory import Trajectory, fly
 from .timehistory_compare import (ChannelError, TimeHistoryComparison, band_metric, compare_time_history,
                                   response_times, unit_of)
 
@@ -341,7 +341,7 @@ class Part60Inputs:
 
 
 def load_part60_inputs(paths: Sequence[str | Path], travel: str | Path | None = None) -> Part60Inputs:
-    """The flight-test files and folders of ``paths`` (:func:`~.data.part60.classify_files`):
+    """The flight-test files and folders of ``paths`` (:func:`~..data.part60_tests.classify_files`):
     the results file with its snapshot file (control travel: the one given among the files,
     else ``travel``, the aircraft's table) and every time history. DataError when there is
     nothing to evaluate, or a results file without its snapshots or control travel."""

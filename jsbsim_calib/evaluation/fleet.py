@@ -1,6 +1,6 @@
 """A fleet of Garmin G1000 logs: every log of a folder evaluated against one aircraft.
 
-Logs are independent work (:mod:`jsbsim_calib.executor`): each is read, cut into its
+Logs are independent work (:mod:`jsbsim_calib.core.executor`): each is read, cut into its
 quasi-steady segments and trimmed from a freshly loaded aircraft, so a log's result does not
 depend on the logs before it, nor on the executor. The batch streams: logs go out in chunks,
 only one summary row per log comes back (memory flat in the number of logs), a log that fails
@@ -15,11 +15,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
 
-from .data.logs import METRICS, log_dataset
-from .errors import CalibError, DataError
+from ..core.errors import CalibError, DataError
+from ..core.executor import SERIAL, Executor
+from ..data.logs import METRICS, log_dataset
+from ..jsbsim.simulator import Simulator
 from .evaluate import evaluate_dataset
-from .executor import SERIAL, Executor
-from .jsbsim.simulator import Simulator
 
 CHUNK_PER_WORKER = 4
 

@@ -1,6 +1,6 @@
 """The model-variant comparison: reports/<aircraft>/slipstream.md with one figure (trims within
 tolerance per axis and full-power surface errors, per variant) and the console table. It draws
-the results of :mod:`jsbsim_calib.variants`; it runs nothing."""
+the results of :mod:`jsbsim_calib.calibration.variants`; it runs nothing."""
 from __future__ import annotations
 
 import math
@@ -12,7 +12,7 @@ import matplotlib
 matplotlib.use("Agg")
 from matplotlib.figure import Figure  # noqa: E402
 
-from ..variants import VariantResult  # noqa: E402
+from ..calibration.variants import VariantResult  # noqa: E402
 
 AXES = ("pitch_deg", "elevator_deg", "aileron_deg", "rudder_deg")
 SAME_ABS, SAME_REL = 1e-3, 0.005       # figures closer than this are the same (a governed RPM off by 1e-7 ...)

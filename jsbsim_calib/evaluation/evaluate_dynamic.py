@@ -15,15 +15,15 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from .data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicMetric,
+from ..data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicMetric,
                                  DynamicTest)
-from .data.flighttest import ControlAxis, to_jsbsim_sign
-from .data.timehistory import SURFACE_OF, TimeHistory, load_time_histories, maneuver_from_time_history
-from .errors import CalibError
+from ..data.flighttest import ControlAxis, to_jsbsim_sign
+from ..data.timehistory import SURFACE_OF, TimeHistory, load_time_histories, maneuver_from_time_history
+from ..core.errors import CalibError
 from .evaluate import MetricSummary, Summary
-from .executor import SERIAL, Executor
-from .jsbsim.simulator import Simulator
-from .jsbsim.trajectory import RATE_HZ, Trajectory, fly
+from ..core.executor import SERIAL, Executor
+from ..jsbsim.simulator import Simulator
+from ..jsbsim.trajectory import RATE_HZ, Trajectory, fly
 
 
 # --------------------------------------------------------------------------- measurements
@@ -201,7 +201,7 @@ class DynamicEvaluation:
 
     def by_metric(self) -> Summary:
         """Accuracy per metric over the tests that measure it (the statistics of
-        :class:`~jsbsim_calib.evaluate.MetricSummary`; a test not flown counts as outside)."""
+        :class:`~jsbsim_calib.evaluation.evaluate.MetricSummary`; a test not flown counts as outside)."""
         out = {}
         for name in dict.fromkeys(m.metric.name for m in self.metric_results()):
             rows = [m for m in self.metric_results() if m.metric.name == name]

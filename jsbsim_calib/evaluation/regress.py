@@ -21,12 +21,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
-from . import __version__
-from .data.load import load_dataset
-from .data.schemas import METRICS
-from .errors import DataError, InputError, Problem
+from .. import __version__
+from ..core.errors import DataError, InputError, Problem
+from ..data.load import load_dataset
+from ..data.schemas import METRICS
+from ..jsbsim.simulator import Simulator
 from .evaluate import KINDS, evaluate_dataset
-from .jsbsim.simulator import Simulator
 
 DEFAULT_SHARE = 0.1
 EVALUATED_KINDS = ("poh_climb", "poh_cruise", "flight_test", "flap_climb", "g1000")

@@ -26,12 +26,12 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from .data import flighttest, logs
-from .data.poh import poh_climb_conditions, poh_cruise_conditions, poh_value
-from .data.schemas import METRICS, Dataset
-from .jsbsim.condition import Condition, TrimResult
-from .jsbsim.simulator import Simulator
-from .physics.geometry import AircraftGeometry
+from ..data import flighttest, logs
+from ..data.poh import poh_climb_conditions, poh_cruise_conditions, poh_value
+from ..data.schemas import METRICS, Dataset
+from ..flight.condition import Condition, TrimResult
+from ..jsbsim.simulator import Simulator
+from ..physics.geometry import AircraftGeometry
 
 
 @dataclass(frozen=True)

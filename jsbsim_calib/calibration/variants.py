@@ -4,7 +4,7 @@ sees what a piece of physics buys before it goes into the product.
 
 A :class:`Variant` is data: the switch values the chain starts from and keeps, and the factors
 it adds to a stage-2a step (fitted there like the step's own). Nothing is written: the chain
-runs on the committed aircraft's files (:mod:`jsbsim_calib.workflow`), each variant from
+runs on the committed aircraft's files (:mod:`jsbsim_calib.calibration.workflow`), each variant from
 neutral factors, as the main job does.
 """
 from __future__ import annotations
@@ -18,14 +18,14 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from .calibration.fit import MAX_NFEV
-from .calibration.steady import steady_factors
-from .calibration.trims import TRIM_STEPS
-from .errors import ModelError
-from .evaluate import Evaluation, summary_dict
-from .executor import SERIAL, Executor
-from .factors import SWITCHES, FactorSet
-from .jsbsim.product import load_aircraft_geometry
+from ..core.errors import ModelError
+from ..core.executor import SERIAL, Executor
+from ..evaluation.evaluate import Evaluation, summary_dict
+from ..factors import SWITCHES, FactorSet
+from ..jsbsim.product import load_aircraft_geometry
+from .fit import MAX_NFEV
+from .steady import steady_factors
+from .trims import TRIM_STEPS
 from .workflow import run_dynamic, run_steady, run_trims
 
 FULL_POWER = 0.95            # throttle at or above this: a full-power (slipstream-heavy) row

@@ -33,8 +33,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import DataError, Problem
-from ..jsbsim.condition import Condition
+from ..core.errors import DataError, Problem
+from ..flight.condition import Condition
 from ..jsbsim.trajectory import Input, Maneuver
 from .dynamic_tests import RESULT_COLUMNS, read_results
 from .schemas import read_csv_checked

@@ -32,10 +32,10 @@ from typing import Callable
 
 import numpy as np
 
-from .physics.atmosphere import isa_temperature_c, ktas_from_kcas
-from .jsbsim.condition import Condition, TrimResult
-from .jsbsim.simulator import Simulator
-from .data.flighttest import (CONTROL_COLUMNS, SURFACE_METRICS, ControlAxis, load_control_travel, snapshot_value)
+from ..physics.atmosphere import isa_temperature_c, ktas_from_kcas
+from ..flight.condition import Condition, TrimResult
+from ..jsbsim.simulator import Simulator
+from ..data.flighttest import (CONTROL_COLUMNS, SURFACE_METRICS, ControlAxis, load_control_travel, snapshot_value)
 
 NOISE = {"pitch_deg": 0.1, "roll_deg": 0.1, "surface_deg": 0.15, "ktas": 0.3, "vs_fpm": 15.0,
          "pressure_alt_ft": 10.0}

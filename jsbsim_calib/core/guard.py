@@ -7,8 +7,13 @@ writer of the same folder is refused at once, naming them (it would otherwise ov
 result the first was told was written); a lock whose process is gone is taken over.
 
 Interrupted (Ctrl-C), a command says in one line what the aircraft holds: unchanged (a write
-half done rolled back by :func:`jsbsim_calib.commit.recover`), or the new product (its write
+half done rolled back by :func:`jsbsim_calib.core.commit.recover`), or the new product (its write
 had been decided); :func:`interrupted_message`.
+
+The guard knows no aircraft file: the command line gives it the aircraft's files
+(``files(root, name)``, an object with ``folder`` and ``product_files``:
+:class:`jsbsim_calib.jsbsim.product.AircraftPaths`) and how a half-done write of them is finished
+or rolled back (``recover(files)``: :func:`jsbsim_calib.jsbsim.product.recover_product`).
 """
 from __future__ import annotations
 
@@ -18,12 +23,13 @@ import os
 import sys
 import time
 import warnings
+from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 from .commit import alive
 from .errors import CalibError
-from .jsbsim.product import AircraftPaths, recover_product
 
 LOCK = ".lock"
 
@@ -84,7 +90,7 @@ def written_aircraft(a) -> str | None:
     return None
 
 
-def fingerprint(paths: AircraftPaths) -> str:
+def fingerprint(paths) -> str:
     """A digest of the aircraft's product files as they stand."""
     h = hashlib.sha256()
     for p in paths.product_files:
@@ -93,30 +99,32 @@ def fingerprint(paths: AircraftPaths) -> str:
 
 
 @contextmanager
-def command_guard(a):
+def command_guard(a, files: Callable[[Path, str], Any], recover: Callable[[Any], str | None]):
     """The lock of the aircraft folder the command writes (if any), and its fingerprint before
-    the run (``a.before``) for :func:`interrupted_message`."""
+    the run (``a.before``) for :func:`interrupted_message`. ``files``, ``recover``: the
+    aircraft's files and their recovery (see the module's text)."""
     name = written_aircraft(a)
     a.before = None
     if name is None:
         yield
         return
-    paths = AircraftPaths(Path(a.root), name)
+    paths = files(Path(a.root), name)
     with aircraft_lock(paths.folder, " ".join(["jsbsim-calib", *sys.argv[1:]]) if sys.argv else a.command):
-        recover_product(paths)
+        recover(paths)
         a.before = fingerprint(paths)
         yield
 
 
-def interrupted_message(a) -> str:
-    """One line: what the interrupted command left of the aircraft it writes."""
+def interrupted_message(a, files: Callable[[Path, str], Any], recover: Callable[[Any], str | None]) -> str:
+    """One line: what the interrupted command left of the aircraft it writes (``files``,
+    ``recover`` as for :func:`command_guard`)."""
     name = written_aircraft(a) if hasattr(a, "command") else None
     if name is None or getattr(a, "before", None) is None:
         return "interrupted; nothing written"
-    paths = AircraftPaths(Path(a.root), name)
+    paths = files(Path(a.root), name)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")            # the one line below says it
-        done = recover_product(paths)
+        done = recover(paths)
     where = f"aircraft/{name}"
     if fingerprint(paths) == a.before:
         return f"interrupted; {where} unchanged" + (" (a half-done write rolled back)" if done == "rolled back" else "")

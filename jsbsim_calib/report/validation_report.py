@@ -1,6 +1,6 @@
 """The held-out validation report: reports/<aircraft>/validation.md with one figure (fit vs
 held-out RMSE per fold), the physics checks, and the console tables. It draws the results of
-:mod:`jsbsim_calib.calibration.validation` and :mod:`jsbsim_calib.physics_checks`; it runs nothing."""
+:mod:`jsbsim_calib.calibration.validation` and :mod:`jsbsim_calib.evaluation.physics_checks`; it runs nothing."""
 from __future__ import annotations
 
 import math
@@ -13,7 +13,7 @@ matplotlib.use("Agg")
 from matplotlib.figure import Figure  # noqa: E402
 
 from ..calibration.validation import FLAG_RATIO, RESOLUTION, ErrorStat, FoldResult, Validation  # noqa: E402
-from ..physics_checks import PhysicsChecks  # noqa: E402
+from ..evaluation.physics_checks import PhysicsChecks  # noqa: E402
 from . import plots  # noqa: E402
 
 STAGE_TITLES = {"steady": "stage 1 (POH climb and cruise)", "trims": "stage 2a (flight-test trims)",
