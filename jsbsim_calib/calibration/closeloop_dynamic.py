@@ -3,7 +3,9 @@
 :func:`close_loop_dynamic` works on recorded tests (:class:`jsbsim_calib.evaluation.evaluate_dynamic.RecordedTest`:
 flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.evaluation.evaluate_dynamic.recorded_test`):
 
-1. fly every test on the model (a trim at its start, its inputs replayed) and diagnose the
+1. fit a constant offset on each replayed surface input of every test (:func:`fit_input_offsets`:
+   nuisance parameters for the error of the replay's reference, the input's first sample);
+   fly every test on the model (a trim at its start, its inputs replayed) and diagnose the
    residual time history of each response channel (:func:`diagnose_channel`): bias, trend,
    the states and inputs it follows, against a noise estimate from its second differences (a
    smooth model error nearly cancels there, sensor noise does not). A channel is structured
@@ -186,13 +188,14 @@ def fly_all(sim: Simulator, tests: Sequence[RecordedTest]) -> list[Response]:
 
 
 def _stack(responses: Sequence[Response]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Scaled residuals, scaled model values (NaN where not flown) and each row's channel."""
+    """Scaled residuals, scaled model values (NaN where not flown) and each row's channel ("":
+    a test the model could not fly, its failure penalty: no channel's structure)."""
     r, v, ch = [], [], []
     for x in responses:
         n = len(x.test.time_s)
         r.append(x.scaled)
         v += [x.model[c] / CHANNEL_SCALES[c] if x.model is not None else np.full(n, np.nan) for c in x.channels]
-        ch.append(np.repeat(np.array(x.channels, dtype=object), n))
+        ch.append(np.repeat(np.array(x.channels if x.model is not None else [""] * len(x.channels), dtype=object), n))
     cat = lambda parts: np.concatenate(parts) if parts else np.zeros(0)
     return cat(r), cat(v), cat(ch)
 
@@ -531,6 +534,7 @@ class CloseLoopDynamicResult(LoopResult):
     wall_time_s: float
     notes: list[str] = field(default_factory=list)
     screens: list[Screen] = field(default_factory=list)
+    input_offsets: dict[str, dict[str, float]] = field(default_factory=dict)   # test -> surface -> deg (nuisance)
 
     def errors(self, which: str) -> dict[str, dict[str, ChannelError]]:
         """'before' or 'after': axis -> channel -> error over all tests."""
@@ -546,7 +550,8 @@ class CloseLoopDynamicResult(LoopResult):
                 "diagnosis_after": {c: d.as_dict() for c, d in self.diagnosis_after.items()},
                 "factors": {n: self.factors[n] for n in self.factors.extra},
                 "refits": [r.summary() for r in self.refits], "rules": RULES, "notes": self.notes,
-                "screens": [x.as_dict() for x in self.screens], "wall_time_s": self.wall_time_s}
+                "screens": [x.as_dict() for x in self.screens], "input_offsets_deg": self.input_offsets,
+                "wall_time_s": self.wall_time_s}
 
 
 def _test_dict(r: Response) -> dict:
@@ -570,6 +575,58 @@ def check_tests(tests: Sequence[RecordedTest]) -> None:
         problems.append(Problem("", "no recorded test given"))
     if problems:
         raise InputError("recorded tests", problems)
+
+
+# --------------------------------------------------------------------------- the inputs' offsets (nuisance)
+OFFSET_CHANNELS = ("elevator_deg", "aileron_deg", "rudder_deg")
+OFFSET_BOUND_DEG = 1.0       # an offset is the reference's error, not a control input
+OFFSET_SIGMAS = 3.0          # ... within this many of the input's own noise (a noiseless input gets none)
+OFFSET_STEP_DEG = 0.05       # finite-difference step of the offsets' Jacobian
+OFFSET_ITERATIONS = 3
+
+
+def with_offsets(test: RecordedTest, offsets: Mapping[str, float]) -> RecordedTest:
+    """The test with a constant added to each of its replayed surface inputs [deg]."""
+    inputs = tuple(replace(i, value=tuple(v + offsets[i.channel] for v in i.value)) if i.channel in offsets else i
+                   for i in test.maneuver.inputs)
+    return replace(test, maneuver=replace(test.maneuver, inputs=inputs))
+
+
+def fit_input_offsets(sim: Simulator, tests: Sequence[RecordedTest]) -> list[dict[str, float]]:
+    """Per test, a constant offset on each replayed surface input, fitted to its response by
+    Gauss-Newton (nuisance parameters, as output-error identification fits biases). A replay
+    takes each input as a change from its first sample, so that sample's noise offsets the
+    whole input, and the start's noise (airspeed, attitude) leaves the trimmed surfaces a
+    little off what the pilot held. Open loop, such an offset drifts the response over a long
+    maneuver by more than a missing effect moves it: the model flying its own Level 5 campaign
+    showed roll, pitch and airspeed structured before, none after. An offset stays within
+    :data:`OFFSET_SIGMAS` of its input's noise (:func:`input_noise` of its recorded samples,
+    at most :data:`OFFSET_BOUND_DEG`), so that it cannot stand in for a missing effect: a
+    noiseless input gets none. A test's offsets move only its own residuals, so one flight of every test
+    per surface gives the whole Jacobian; each test keeps the offsets of its lowest cost."""
+    bounds = [{i.channel: min(OFFSET_BOUND_DEG, OFFSET_SIGMAS * input_noise(t.record.get(i.channel, ())))
+               for i in t.maneuver.inputs if i.channel in OFFSET_CHANNELS} for t in tests]
+    bounds = [{c: b for c, b in bs.items() if b > 0} for bs in bounds]
+    offsets = [dict.fromkeys(bs, 0.0) for bs in bounds]
+    best = [(math.inf, dict(o)) for o in offsets]
+    channels = [c for c in OFFSET_CHANNELS if any(c in o for o in offsets)]
+    for it in range(OFFSET_ITERATIONS + 1):
+        base = [x.scaled for x in fly_all(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)])]
+        best = [(float(r @ r), dict(o)) if float(r @ r) < b[0] else b for r, o, b in zip(base, offsets, best)]
+        if it == OFFSET_ITERATIONS:
+            break
+        moved = [{**o, c: o[c] + OFFSET_STEP_DEG} if c in o else o for c in channels for o in offsets]
+        flown = fly_all(sim, [with_offsets(t, o) for t, o in zip(tests * len(channels), moved)])
+        for k, o in enumerate(offsets):
+            own = [c for c in channels if c in o]
+            if not own:
+                continue
+            J = np.column_stack([(flown[channels.index(c) * len(tests) + k].scaled - base[k]) / OFFSET_STEP_DEG
+                                 for c in own])
+            step = np.linalg.lstsq(J, -base[k], rcond=None)[0]
+            for c, dx in zip(own, step):
+                o[c] = float(np.clip(o[c] + dx, -bounds[k][c], bounds[k][c]))
+    return [b[1] for b in best]
 
 
 # --------------------------------------------------------------------------- what the inputs' noise gives
@@ -688,7 +745,10 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
     say = progress or (lambda s: None)
     tests = list(tests)
     check_tests(tests)
-    tests = replay_weights(sim, tests)
+    offsets = fit_input_offsets(sim, tests)
+    tests = replay_weights(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)])
+    say("input offsets (per maneuver, deg): " + "; ".join(
+        f"{t.id} " + ", ".join(f"{c.split('_')[0]} {v:+.3f}" for c, v in o.items()) for t, o in zip(tests, offsets) if o))
     ev = TimeHistoryEvidence(tests, default_effects() if effects is None else dict(effects), executor)
     before = fly_all(sim, tests)
     diag0 = diagnose_responses(before)
@@ -698,7 +758,8 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
     notes = [f"{r.test.id}: not flown ({r.failure}); its samples count as failures" for r in before if r.failure]
     return CloseLoopDynamicResult(sim.name, sim.root, tests, before, run.final, diag0, diagnose_responses(run.final),
                                   run.candidates, run.added_names, run.refits, run.factors, run.tree,
-                                  time.perf_counter() - t0, notes, ev.screens)
+                                  time.perf_counter() - t0, notes, ev.screens,
+                                  {t.id: o for t, o in zip(tests, offsets) if o})
 
 
 # --------------------------------------------------------------------------- files

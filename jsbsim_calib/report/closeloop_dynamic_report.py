@@ -120,17 +120,20 @@ def _error_table(result: CloseLoopDynamicResult) -> list[str]:
 
 
 def _tests_table(result: CloseLoopDynamicResult) -> list[str]:
-    L = ["| test | kind | samples | duration [s] | channels | flown |", "|---|---|---:|---:|---|---|"]
+    L = ["| test | kind | samples | duration [s] | channels | input offsets [deg] | flown |",
+         "|---|---|---:|---:|---|---|---|"]
     for r in result.before:
         t = r.test
+        off = ", ".join(f"{c.split('_')[0]} {v:+.3f}" for c, v in result.input_offsets.get(t.id, {}).items())
         L.append(f"| {t.id} | {t.kind} | {len(t.time_s)} | {t.time_s[-1]:.1f} | {', '.join(r.channels)} | "
-                 f"{'no: ' + r.failure if r.failure else 'yes'} |")
+                 f"{off or '-'} | {'no: ' + r.failure if r.failure else 'yes'} |")
     return L + [""]
 
 
 def _method() -> str:
     return ("Method (`jsbsim_calib.calibration.closeloop_dynamic`): every test is flown on the model (trim at its "
-            "first sample, its inputs replayed); each response channel's residual time history is diagnosed against "
+            "first sample, its inputs replayed, each surface input with a constant offset fitted per test: the "
+            "error of the replay's reference, a nuisance parameter); each response channel's residual time history is diagnosed against "
             "a noise estimate from its second differences; an axis is structured when one of its channels has a "
             f"residual beyond the noise of at least {MATERIAL:g} of its scale. Every library effect that acts on a "
             "structured axis is added to a copy of the aircraft and its factor fitted alone on all the tests; the "
