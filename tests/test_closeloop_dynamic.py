@@ -24,6 +24,7 @@ from jsbsim_calib.calibration.loop import MIN_EVIDENCE, MIN_EXPLAINED, evidence_
 from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, acts_on, close_loop_dynamic, check_tests,
                                                         companion_factors, cross_validate, dynamic_library,
                                                         effect_axis, noise_in_scales)
+from jsbsim_calib.data.flighttest import load_control_travel
 from jsbsim_calib.evaluation.evaluate_dynamic import CHANNEL_SCALES, load_recorded_tests
 from jsbsim_calib.core.errors import InputError
 from jsbsim_calib.core.executor import ProcessExecutor
@@ -188,6 +189,24 @@ def test_b_a_clean_truth_adds_nothing(clean, tmp_path):
     # the noise estimate finds the sensor noise of the records (second differences)
     for c in ("r_deg_s", "beta_deg", "p_deg_s"):
         assert res.diagnosis_before[c].noise == pytest.approx(RESPONSE_NOISE[c], rel=0.35), c
+
+
+@pytest.mark.slow
+def test_b_the_model_flying_its_own_level5_campaign_adds_nothing(clean, tmp_path):
+    """The packaged Level 5 plan with its sensor noise and biases (inputs included), flown by
+    the committed model: the replay's input offsets (nuisance, within 3 sigma of each input's
+    noise) leave no channel structured, so no candidate is flown (before the offsets: roll,
+    pitch, beta and airspeed read as structured and four candidates were fitted, 113 s)."""
+    synthesize_maneuvers(clean, load_plan("level5"), tmp_path / "l5", seed=1)
+    tests = load_recorded_tests(tmp_path / "l5", load_control_travel(clean.geometry.control_travel_file))
+    with clean.clone() as sim:
+        res = close_loop_dynamic(sim, tests)
+    assert res.added == [] and res.candidates == [], [(c.effect, c.reason) for c in res.candidates]
+    assert not any(d.structured for d in res.diagnosis_before.values()), \
+        {c: d.reason for c, d in res.diagnosis_before.items() if d.structured}
+    offsets = [abs(v) for o in res.input_offsets.values() for v in o.values()]
+    assert offsets and max(offsets) <= 3 * 0.15           # the plan's surfaces: 0.1 deg noise per sample
+    assert max(offsets) > 0.05                            # measured: 0.37 deg (S.18, elevator)
 
 
 # --------------------------------------------------------------------------- the command line
