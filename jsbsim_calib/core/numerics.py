@@ -207,7 +207,7 @@ def least_squares(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.nda
         while status is None:
             room = None if max_nfev is None else max_nfev - nfev
             steps, stop, (lam_next, nu_next) = _damped_steps(A, g, d, free, x, lower, upper, lam, nu, xtol,
-                                                             min(batch, batch if room is None else max(room, 0)))
+                                                             batch if room is None else min(batch, max(room, 0)))
             accepted = False
             for (x_new, s, lam_at, nu_at), r_new in zip(steps, evaluate([st[0] for st in steps]) if steps else []):
                 r_new = np.asarray(r_new, float)

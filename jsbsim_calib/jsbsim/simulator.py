@@ -71,7 +71,6 @@ class Simulator:
             shutil.copy(self.paths.engine_xml, self._box / "engine")
             self._box_paths = AircraftPaths(self._box, name)
             self._propellers: dict[tuple, bytes] = {}
-            self._propeller_xml: Path | None = None
             self._write_sandbox(aircraft=True, propeller=True)
             self._baked = {k: self.factors[k] for k in PROPELLER_FACTORS}
             self.loads = 0
@@ -174,11 +173,9 @@ class Simulator:
             if baked is None:
                 if len(self._propellers) >= PROPELLER_CACHE:
                     self._propellers.pop(next(iter(self._propellers)))
-                if self._propeller_xml is None:
-                    self._propeller_xml = self._box_paths.propeller_xml
                 baked = self._propellers[key] = propeller_bytes(
                     self._box_paths, Propeller(self.geometry, self.bem, self.name), self.factors)
-            write_bytes(self._propeller_xml, baked)
+            write_bytes(self._box_paths.propeller_xml, baked)
 
     @property
     def sandbox(self) -> Path:
