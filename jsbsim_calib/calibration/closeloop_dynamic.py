@@ -592,6 +592,34 @@ def with_offsets(test: RecordedTest, offsets: Mapping[str, float]) -> RecordedTe
     return replace(test, maneuver=replace(test.maneuver, inputs=inputs))
 
 
+def offset_bounds(tests: Sequence[RecordedTest]) -> list[dict[str, float]]:
+    """Per test, how far each replayed surface input's offset may go: :data:`OFFSET_SIGMAS` of
+    the input's noise (:func:`input_noise` of its recorded samples), at most
+    :data:`OFFSET_BOUND_DEG`; an input without noise has no offset."""
+    out = []
+    for t in tests:
+        b = {i.channel: min(OFFSET_BOUND_DEG, OFFSET_SIGMAS * input_noise(t.record.get(i.channel, ())))
+             for i in t.maneuver.inputs if i.channel in OFFSET_CHANNELS}
+        out.append({c: v for c, v in b.items() if v > 0})
+    return out
+
+
+def _offset_jacobians(sim: Simulator, tests: Sequence[RecordedTest], offsets: Sequence[Mapping[str, float]]):
+    """Each test flown at its offsets, and the change of its scaled residuals per degree of each
+    of its offsets (None: no offset). A test's offsets move only its own residuals, so one
+    flight of every test per surface gives every Jacobian."""
+    channels = [c for c in OFFSET_CHANNELS if any(c in o for o in offsets)]
+    base = fly_all(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)])
+    moved = [{**o, c: o[c] + OFFSET_STEP_DEG} if c in o else o for c in channels for o in offsets]
+    flown = fly_all(sim, [with_offsets(t, o) for t, o in zip(list(tests) * len(channels), moved)])
+    jac = []
+    for k, o in enumerate(offsets):
+        own = [c for c in channels if c in o]
+        jac.append(np.column_stack([(flown[channels.index(c) * len(tests) + k].scaled - base[k].scaled)
+                                    / OFFSET_STEP_DEG for c in own]) if own else None)
+    return base, jac
+
+
 def fit_input_offsets(sim: Simulator, tests: Sequence[RecordedTest]) -> list[dict[str, float]]:
     """Per test, a constant offset on each replayed surface input, fitted to its response by
     Gauss-Newton (nuisance parameters, as output-error identification fits biases). A replay
@@ -599,34 +627,37 @@ def fit_input_offsets(sim: Simulator, tests: Sequence[RecordedTest]) -> list[dic
     whole input, and the start's noise (airspeed, attitude) leaves the trimmed surfaces a
     little off what the pilot held. Open loop, such an offset drifts the response over a long
     maneuver by more than a missing effect moves it: the model flying its own Level 5 campaign
-    showed roll, pitch and airspeed structured before, none after. An offset stays within
-    :data:`OFFSET_SIGMAS` of its input's noise (:func:`input_noise` of its recorded samples,
-    at most :data:`OFFSET_BOUND_DEG`), so that it cannot stand in for a missing effect: a
-    noiseless input gets none. A test's offsets move only its own residuals, so one flight of every test
-    per surface gives the whole Jacobian; each test keeps the offsets of its lowest cost."""
-    bounds = [{i.channel: min(OFFSET_BOUND_DEG, OFFSET_SIGMAS * input_noise(t.record.get(i.channel, ())))
-               for i in t.maneuver.inputs if i.channel in OFFSET_CHANNELS} for t in tests]
-    bounds = [{c: b for c, b in bs.items() if b > 0} for bs in bounds]
-    offsets = [dict.fromkeys(bs, 0.0) for bs in bounds]
+    showed roll, pitch and airspeed structured before, none after. Each offset stays within
+    :func:`offset_bounds`, so that it cannot stand in for a missing effect; each test keeps
+    the offsets of its lowest cost. The candidates then see the offsets' directions projected
+    out (:func:`offset_bases`): fitted once here, on the model before any candidate, the
+    offsets would otherwise keep what they took up of a missing effect."""
+    bounds = offset_bounds(tests)
+    offsets = [dict.fromkeys(b, 0.0) for b in bounds]
     best = [(math.inf, dict(o)) for o in offsets]
-    channels = [c for c in OFFSET_CHANNELS if any(c in o for o in offsets)]
-    for it in range(OFFSET_ITERATIONS + 1):
-        base = [x.scaled for x in fly_all(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)])]
-        best = [(float(r @ r), dict(o)) if float(r @ r) < b[0] else b for r, o, b in zip(base, offsets, best)]
-        if it == OFFSET_ITERATIONS:
-            break
-        moved = [{**o, c: o[c] + OFFSET_STEP_DEG} if c in o else o for c in channels for o in offsets]
-        flown = fly_all(sim, [with_offsets(t, o) for t, o in zip(tests * len(channels), moved)])
-        for k, o in enumerate(offsets):
-            own = [c for c in channels if c in o]
-            if not own:
-                continue
-            J = np.column_stack([(flown[channels.index(c) * len(tests) + k].scaled - base[k]) / OFFSET_STEP_DEG
-                                 for c in own])
-            step = np.linalg.lstsq(J, -base[k], rcond=None)[0]
-            for c, dx in zip(own, step):
-                o[c] = float(np.clip(o[c] + dx, -bounds[k][c], bounds[k][c]))
+    for it in range(OFFSET_ITERATIONS):
+        base, jac = _offset_jacobians(sim, tests, offsets)
+        best = [(float(x.scaled @ x.scaled), dict(o)) if float(x.scaled @ x.scaled) < b[0] else b
+                for x, o, b in zip(base, offsets, best)]
+        for k, (o, J) in enumerate(zip(offsets, jac)):
+            if J is not None and base[k].model is not None:
+                step = np.linalg.lstsq(J, -base[k].scaled, rcond=None)[0]
+                offsets[k] = {c: float(np.clip(o[c] + dx, -bounds[k][c], bounds[k][c])) for c, dx in zip(o, step)}
+    last = fly_all(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)])
+    best = [(float(x.scaled @ x.scaled), dict(o)) if float(x.scaled @ x.scaled) < b[0] else b
+            for x, o, b in zip(last, offsets, best)]
     return [b[1] for b in best]
+
+
+def offset_bases(sim: Simulator, tests: Sequence[RecordedTest]) -> list[np.ndarray | None]:
+    """Per test (offsets applied, weights set), an orthonormal basis of the directions its
+    offsets move its scaled residuals in (None: no offset, or not flown). Projecting them out
+    of a test's residuals re-fits its offsets, linearized, with every candidate: a candidate
+    is judged on what no offset explains (variable projection of nuisance parameters)."""
+    zero = [dict.fromkeys(b, 0.0) for b in offset_bounds(tests)]
+    base, jac = _offset_jacobians(sim, tests, zero)
+    return [np.linalg.qr(J)[0] if J is not None and x.model is not None and np.all(np.isfinite(J)) else None
+            for x, J in zip(base, jac)]
 
 
 # --------------------------------------------------------------------------- what the inputs' noise gives
@@ -675,8 +706,10 @@ class TimeHistoryEvidence:
 
     kind = "time histories"
 
-    def __init__(self, tests: Sequence[RecordedTest], lib: dict[str, Effect], executor: Executor = SERIAL):
+    def __init__(self, tests: Sequence[RecordedTest], lib: dict[str, Effect], executor: Executor = SERIAL,
+                 bases: Sequence[np.ndarray | None] | None = None):
         self.tests, self.lib, self.executor = list(tests), lib, executor
+        self.bases = list(bases) if bases is not None else [None] * len(self.tests)   # offset_bases()
         self.screens: list[Screen] = []
         self._terms: list[Change] = []
 
@@ -685,10 +718,16 @@ class TimeHistoryEvidence:
         return {**self.__dict__, "executor": SERIAL}
 
     def rows(self, sim: Simulator, part) -> Rows:
-        r, v, ch = _stack(fly_all(sim, [self.tests[i] for i in part]))
+        flown = fly_all(sim, [self.tests[i] for i in part])
+        r, v, ch = _stack([self._projected(i, x) for i, x in zip(part, flown)])
         labels = [f"{self.tests[i].id} {c} t={s:.2f}" for i in part for c in response_channels(self.tests[i])
                   for s in self.tests[i].time_s]
         return Rows(r, ch, v, labels)
+
+    def _projected(self, i: int, x: Response) -> Response:
+        """A flown test's residuals less what its input offsets explain (:func:`offset_bases`)."""
+        Q = self.bases[i]
+        return x if Q is None or x.model is None else replace(x, scaled=x.scaled - Q @ (Q.T @ x.scaled))
 
     def diagnose(self, sim: Simulator) -> dict[str, ChannelDiagnosis]:
         return diagnose_responses(fly_all(sim, self.tests))
@@ -747,15 +786,19 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
     check_tests(tests)
     offsets = fit_input_offsets(sim, tests)
     tests = replay_weights(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)])
+    bases = offset_bases(sim, tests)
+    before = fly_all(sim, tests)
+    flying = [k for k, r in enumerate(before) if not r.failure]      # the others carry no structure (notes)
     say("input offsets (per maneuver, deg): " + "; ".join(
         f"{t.id} " + ", ".join(f"{c.split('_')[0]} {v:+.3f}" for c, v in o.items()) for t, o in zip(tests, offsets) if o))
-    ev = TimeHistoryEvidence(tests, default_effects() if effects is None else dict(effects), executor)
-    before = fly_all(sim, tests)
+    ev = TimeHistoryEvidence([tests[k] for k in flying], default_effects() if effects is None else dict(effects),
+                             executor, [bases[k] for k in flying])
     diag0 = diagnose_responses(before)
     for c, d in diag0.items():
         say(f"diagnosis {c}: {'STRUCTURED' if d.structured else 'noise'}: {d.reason}")
     run = run_loop(ev, sim, max_effects=max_effects, diagnosis=diag0, final=lambda s: fly_all(s, tests), progress=say)
-    notes = [f"{r.test.id}: not flown ({r.failure}); its samples count as failures" for r in before if r.failure]
+    notes = [f"{r.test.id}: not flown ({r.failure}); set aside: the candidates are fitted and cross-validated on the "
+             "maneuvers the model flies" for r in before if r.failure]
     return CloseLoopDynamicResult(sim.name, sim.root, tests, before, run.final, diag0, diagnose_responses(run.final),
                                   run.candidates, run.added_names, run.refits, run.factors, run.tree,
                                   time.perf_counter() - t0, notes, ev.screens,
