@@ -27,7 +27,6 @@ from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, acts_o
 from jsbsim_calib.data.flighttest import load_control_travel
 from jsbsim_calib.evaluation.evaluate_dynamic import CHANNEL_SCALES, load_recorded_tests
 from jsbsim_calib.core.errors import InputError
-from jsbsim_calib.core.executor import ProcessExecutor
 from jsbsim_calib.jsbsim import xml
 from jsbsim_calib.jsbsim.aircraft import EFFECT_SYSTEM_PREFIX
 from jsbsim_calib.flight.condition import Condition
@@ -162,20 +161,26 @@ def test_a_yaw_due_to_roll_rate_is_found_and_its_coefficient_recovered(clean, cn
 
 
 @pytest.mark.slow
-def test_candidates_folds_and_refit_on_a_pool_give_the_serial_bits(clean, cn_p_records):
+def test_candidates_folds_and_refit_on_a_pool_give_the_serial_bits(tmp_path, cn_p_records):
     """The candidates' fits, the cross-validation folds and the refit's Jacobian run as tasks
-    (a pool of 2 here): every candidate's numbers, the factors and the errors after are the
-    bits of the serial run."""
-    tests = load_recorded_tests(cn_p_records)
-    with clean.clone() as sim:                      # the same start: no trim warm starts kept from other tests
-        serial = close_loop_dynamic(sim, tests, max_effects=1)
-    with clean.clone() as sim, ProcessExecutor(2) as pool:
-        pooled = close_loop_dynamic(sim, tests, max_effects=1, executor=pool)
-    assert pooled.added == serial.added == ["yaw_due_to_roll_rate"]
-    assert [c.as_dict() for c in pooled.candidates] == [c.as_dict() for c in serial.candidates]
-    assert pooled.factors.as_dict() == serial.factors.as_dict()
-    after = lambda r: {a: {c: e.as_dict() for c, e in ch.items()} for a, ch in r.errors("after").items()}
-    assert after(pooled) == after(serial)
+    (a pool of 2 here): the command's JSON (every candidate's numbers, the factors, the errors
+    before and after) is the serial run's, bit for bit. Each run is its own process, as a user
+    runs it."""
+    out = {}
+    for ex in ("serial", "process"):
+        out[ex] = tmp_path / f"{ex}.json"
+        r = subprocess.run([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(REPO), "--quiet", "--executor", ex,
+                            "--workers", "2", "close-loop", "c172", "--flight-test", str(cn_p_records), "--no-write",
+                            "--json", str(out[ex]), "--report-dir", str(tmp_path / ex)],
+                           capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr[-2000:]
+    serial, pooled = (json.loads(out[ex].read_text()) for ex in ("serial", "process"))
+    for doc in (serial, pooled):
+        doc.pop("wall_time_s")
+        for x in doc["screens"]:
+            x.pop("wall_time_s")
+    assert pooled["added"] == ["yaw_due_to_roll_rate"]
+    assert pooled == serial
 
 
 # --------------------------------------------------------------------------- (b) the null case
