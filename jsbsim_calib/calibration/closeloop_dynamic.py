@@ -635,17 +635,18 @@ def fit_input_offsets(sim: Simulator, tests: Sequence[RecordedTest]) -> list[dic
     bounds = offset_bounds(tests)
     offsets = [dict.fromkeys(b, 0.0) for b in bounds]
     best = [(math.inf, dict(o)) for o in offsets]
+
+    def keep_best(flown):         # per test, the offsets of the lowest cost so far
+        return [(c, dict(o)) if (c := float(x.scaled @ x.scaled)) < b[0] else b for x, o, b in zip(flown, offsets, best)]
+
     for it in range(OFFSET_ITERATIONS):
         base, jac = _offset_jacobians(sim, tests, offsets)
-        best = [(float(x.scaled @ x.scaled), dict(o)) if float(x.scaled @ x.scaled) < b[0] else b
-                for x, o, b in zip(base, offsets, best)]
+        best = keep_best(base)
         for k, (o, J) in enumerate(zip(offsets, jac)):
             if J is not None and base[k].model is not None:
                 step = np.linalg.lstsq(J, -base[k].scaled, rcond=None)[0]
                 offsets[k] = {c: float(np.clip(o[c] + dx, -bounds[k][c], bounds[k][c])) for c, dx in zip(o, step)}
-    last = fly_all(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)])
-    best = [(float(x.scaled @ x.scaled), dict(o)) if float(x.scaled @ x.scaled) < b[0] else b
-            for x, o, b in zip(last, offsets, best)]
+    best = keep_best(fly_all(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)]))
     return [b[1] for b in best]
 
 
