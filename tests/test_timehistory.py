@@ -70,13 +70,25 @@ def test_valid_file_loads(tmp_path):
         th.channel("rpm")
 
 
-def test_initial_condition_from_first_sample(tmp_path):
-    th = load_time_history(_write(tmp_path, rows=_cell(0, "roll_deg", "20.0")))
-    c = th.initial_condition()
-    assert (c.ktas, c.pressure_alt_ft, c.vs_fpm, c.bank_deg, c.turn) == (110.0, 5500.0, 0.0, 20.0, "coordinated")
+# a steady start of three samples (noisy speed and climb, 20 deg bank), then the elevator steps 2 deg
+STEADY = [f"{i / 10:.1f},5500.0,{(110.3, 109.9, 109.8)[i] if i < 3 else 105.0},{(15.0, -3.0, 0.0)[i] if i < 3 else 300.0},"
+          f"0.5,{20.0 if i < 3 else 25.0},0.5,{1.0 if i < 3 else 3.0},3.1,0.8" for i in range(8)]
+
+
+def test_initial_condition_from_the_steady_start(tmp_path):
+    th = load_time_history(_write(tmp_path, rows=STEADY))
+    assert th.steady_lead() == 3                                 # until the elevator departs by > 0.5 deg
+    c = th.initial_condition()                                   # the mean of the steady samples, not the first
+    assert (c.ktas, c.pressure_alt_ft, c.vs_fpm, c.bank_deg, c.turn) == pytest.approx(
+        (110.0, 5500.0, 4.0, 20.0, "coordinated"))
     assert (c.weight_lb, c.cg_in, c.flaps_deg, c.mixture, c.mode) == (2400.0, 42.0, 0.0, "cruise", "level")
+    m = maneuver_from_time_history(th)                           # the elevator: a change from the steady value
+    assert m.inputs[0].value[0] == pytest.approx(0.0) and max(map(abs, m.inputs[0].value)) == pytest.approx(2.0)
+    held = _meta(pilot={"pitch": [{"loop": "pitch", "target": 3.0, "start_s": 0.2}]})
+    assert load_time_history(_write(tmp_path / "w", rows=STEADY, meta=held)).steady_lead() == 2   # a window moves it
     straight = load_time_history(_write(tmp_path / "b")).initial_condition()
     assert straight.turn == "straight" and straight.bank_deg == 0.0
+    assert straight.ktas == pytest.approx(np.mean([110 - 0.1 * i for i in range(6)]))   # 0.5 s, nothing departs
 
 
 # each case: (files to write, what the message must name)

@@ -10,8 +10,9 @@ model cannot do, the reason.
 Tolerances (:class:`Tolerance`): absolute (in the metric's unit) and/or relative (share of the
 flight-test value); where Part 60 gives two values joined by "or", the less restrictive one
 applies. An acceptance range (FAA alternative data, engine response 2-4 s) applies where there
-is no flight-test value. Non-numeric tolerances: ``trend`` (correct trend: the same sign, or
-both neutral within the tolerance's band), ``ctm`` (correct trend and magnitude: a wrong trend
+is no flight-test value. Non-numeric tolerances: ``trend`` (correct trend: not opposite signs
+with either value beyond the tolerance's neutral band; a neutral value on the same side as a
+signed one is the same trend), ``ctm`` (correct trend and magnitude: a wrong trend
 fails, the magnitude is the evaluator's), ``representative`` (the evaluator's), ``info``
 (shown, not judged). :func:`judge` turns a flight-test and a model value into a
 :class:`MetricVerdict`: no flight-test value is n/a, a model value that is not a number (NaN:
@@ -300,6 +301,14 @@ def trend_of(x: float, neutral: float | None) -> str:
     return "neutral" if abs(x) <= band else ("+" if x > 0 else "-")
 
 
+def same_trend(ref: float, model: float, neutral: float | None) -> bool:
+    """Both neutral, or not on opposite sides of zero: a value within the neutral band
+    (:func:`trend_of`) still leans to its side, so a neutral flight test and a mildly signed
+    model on the same side agree, and on the other side disagree."""
+    both_neutral = trend_of(ref, neutral) == trend_of(model, neutral) == "neutral"
+    return both_neutral or (ref > 0) == (model > 0) or ref == 0 or model == 0
+
+
 def _alternative(t: Tolerance, ref: float) -> bool:
     """Judged on the acceptance range: a range tolerance, or no flight-test value and a range
     of alternative data."""
@@ -316,8 +325,7 @@ def _judge_value(t: Tolerance, ref: float, model: float) -> tuple[float, str, st
     if t.judged == "":
         ok = abs(err) <= t.band(ref) + 1e-9
         return err, PASS if ok else FAIL, "" if ok else f"outside +-{t.band(ref):.3g} {t.unit}".rstrip()
-    same = trend_of(ref, t.absolute) == trend_of(model, t.absolute)
-    if t.judged in ("trend", "ctm") and not same:
+    if t.judged in ("trend", "ctm") and not same_trend(ref, model, t.absolute):
         return err, FAIL, f"wrong trend ({trend_of(model, t.absolute)}, flight test {trend_of(ref, t.absolute)})"
     if t.judged == "trend":
         return err, PASS, ""

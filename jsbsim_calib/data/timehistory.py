@@ -93,6 +93,9 @@ MIXTURES = ("cruise", "climb")
 PILOT_AXES = ("pitch", "roll", "yaw", "speed")
 AXIS_CHANNELS = {"pitch": ("elevator_deg", "column_in"), "roll": ("aileron_deg", "wheel_deg"),
                  "yaw": ("rudder_deg", "pedal_in"), "speed": ("throttle_norm",)}
+STEADY_LEAD_S = 1.0      # the steady start a record begins from: at most its first second
+DEPARTURE = {"throttle_norm": 0.05, "flaps_deg": 1.0, "column_in": 0.05, "pedal_in": 0.05, "wheel_deg": 2.0}
+#   ... ended where an input departs from its first sample by this much (else 0.5 deg of a surface)
 MAX_LISTED = 10          # problems of one kind listed per column before a count of the rest
 RATE_TOLERANCE = 0.01    # sample interval vs 1 / sample_rate_hz
 
@@ -304,16 +307,33 @@ class TimeHistory:
             raise KeyError(f"{self.stem}: no channel '{name}'; channels: {', '.join(self.frame.columns)}")
         return self.frame[name].to_numpy(float)
 
+    def steady_lead(self) -> int:
+        """How many leading samples hold the steady start the record begins from (at least one):
+        those of its first :data:`STEADY_LEAD_S` before an input departs from its first sample
+        (:data:`DEPARTURE`) or a pilot window with a target begins. Their mean, not one noisy
+        sample, is the replay's trim and the reference of its inputs."""
+        t = self.time_s - self.time_s[0]
+        end = STEADY_LEAD_S
+        for name in self.meta.inputs:
+            x = self.channel(name)
+            away = np.flatnonzero(np.abs(x - x[0]) > DEPARTURE.get(name, 0.5))
+            end = min(end, float(t[away[0]])) if away.size else end
+        for loop in self.meta.pilot.values():
+            starts = [float(w.get("start_s", 0.0)) for w in loop if "target" in w] if isinstance(loop, list) else []
+            end = min([end, *starts])
+        return max(1, int(np.count_nonzero(t < end)))
+
     def initial_condition(self) -> Condition:
-        """The trim condition of the first sample: pressure altitude, KTAS (else KCAS),
-        vertical speed, bank (a steady coordinated turn if not 0), and the configuration."""
+        """The trim condition of the steady start (the mean of :meth:`steady_lead`'s samples):
+        pressure altitude, KTAS (else KCAS), vertical speed, bank (a steady coordinated turn if
+        not 0), and the configuration."""
         missing = [c for c in ("pressure_alt_ft",) if c not in self.frame]
         if "ktas" not in self.frame and "kcas" not in self.frame:
             missing.append("ktas or kcas")
         if missing:
             raise DataError(self.path or self.stem, Problem("columns", f"the initial condition needs "
                                                                        f"{', '.join(missing)}"))
-        first = self.frame.iloc[0]
+        first = self.frame.iloc[:self.steady_lead()].mean()
         speed = {"ktas": float(first["ktas"])} if "ktas" in self.frame else {"kcas": float(first["kcas"])}
         bank = float(first["roll_deg"]) if "roll_deg" in self.frame else 0.0
         c = self.meta.configuration
@@ -630,8 +650,9 @@ def pilot_windows(holds: Sequence[Hold]) -> dict[str, object]:
 
 def maneuver_from_time_history(th: TimeHistory, geometry=None, pilot: Mapping[str, str] | None = None, *,
                                travel: Mapping[str, ControlAxis] | None = None) -> Maneuver:
-    """A maneuver that replays the record: from the trim at its first sample, every input
-    channel as an open-loop change from its first sample at the sample times (straight
+    """A maneuver that replays the record: from the trim at its steady start
+    (:meth:`TimeHistory.initial_condition`), every input channel as an open-loop change from
+    its value there (the mean of :meth:`TimeHistory.steady_lead`'s samples; straight
     lines between samples; cockpit controls through the control-travel table: ``travel``,
     else the table of ``geometry``, with the table's linear neutrals). ``pilot`` {axis: loop}
     adds pilot loops holding the trimmed value on those axes, {axis: [windows]} the loops
@@ -640,10 +661,11 @@ def maneuver_from_time_history(th: TimeHistory, geometry=None, pilot: Mapping[st
     if travel is None and geometry is not None and getattr(geometry, "control_travel_file", None):
         travel = load_control_travel(geometry.control_travel_file)
     t = th.time_s - th.time_s[0]
+    lead = th.steady_lead()
     inputs = []
     for name in th.meta.inputs:
         channel, x = _input_series(th, name, travel)
-        times, values = _breakpoints(t, x - x[0], _resolution(name, travel))
+        times, values = _breakpoints(t, x - np.mean(x[:lead]), _resolution(name, travel))
         inputs.append(Input(channel, times, values, relative=True))
     name = re.sub(r"[^A-Za-z0-9_-]+", "_", th.stem)
     return Maneuver(name, th.initial_condition(), float(t[-1]), tuple(inputs), _holds(pilot, th.path or th.stem),

@@ -35,7 +35,7 @@ from ..core.errors import CalibError
 from ..data.dynamic_tests import ROLL_WINDOW_S
 from ..data.flighttest import to_data_sign
 from ..data.part60_tests import INPUT_CHANNEL, METRIC_CHANNEL, NA, MetricVerdict, Part60Test, catalogue_test, judge
-from ..data.timehistory import TimeHistory, maneuver_from_time_history
+from ..data.timehistory import DEPARTURE, TimeHistory, maneuver_from_time_history
 from ..jsbsim.trajectory import RATE_HZ, Hold, Maneuver, Trajectory, fly
 from .evaluate_dynamic import peak_rate, steady_roll_rate
 
@@ -45,9 +45,9 @@ CHANNELS = ("pressure_alt_ft", "kcas", "ktas", "vs_fpm", "pitch_deg", "roll_deg"
 UNITS = {"pressure_alt_ft": "ft", "kcas": "kt", "ktas": "kt", "vs_fpm": "ft/min", "nz_g": "g", "rpm": "rpm",
          "throttle_norm": "-", "p_deg_s": "deg/s", "q_deg_s": "deg/s", "r_deg_s": "deg/s"}
 SURFACE_OF = {"elevator_deg": "elevator", "aileron_deg": "aileron", "rudder_deg": "rudder"}
-INPUT_THRESHOLD = {"throttle_norm": 0.05, "flaps_deg": 1.0}     # else 0.5 deg of a surface
 STEADY_S = 3.0           # steady values: mean over the last seconds of a record
 END_S = 2.0              # "after" values of a change: mean over the last seconds
+RELEASE_S = 1.0          # a released control: the state held before it, mean over this second
 OSCILLATION_THRESHOLD = 0.05   # turning points stand out by this share of the oscillation's range
 NOISE_SIGMAS = 8.0             # ... and by this many standard deviations of the sample noise
 THROTTLE_STOP = 0.02     # a record starting this close to a throttle stop is trimmed at it (flight path free)
@@ -57,7 +57,7 @@ THROTTLE_STOP = 0.02     # a record starting this close to a throttle stop is tr
 # pilot, holding the flight test's final value (its recorded surface is then a model output).
 EXAMINED_AXES = {
     "1.f.1": ("speed",), "2.b.1/2.b.4": ("pitch",), "2.b.2/2.b.5": ("roll",), "2.b.3/2.b.6": ("yaw",),
-    "2.c.1.b": ("speed",), "2.c.7": ("pitch",), "2.c.9.b": ("pitch",), "2.d.2": ("roll",), "2.d.4": ("roll",),
+    "2.c.1.b": ("speed",), "2.c.9.b": ("pitch",), "2.d.2": ("roll",),
     "2.d.6.a/b": ("yaw",), "2.d.7": ("yaw",), "2.d.8": ("yaw",),
 }
 AXIS_OF_INPUT = {"elevator_deg": "pitch", "aileron_deg": "roll", "rudder_deg": "yaw", "throttle_norm": "speed"}
@@ -89,12 +89,13 @@ class Trace:
         return np.full(self.time_s.shape, np.nan) if x is None else x
 
 
-def input_times(t: np.ndarray, u: np.ndarray | None, threshold: float) -> tuple[float, float]:
-    """When an input first departs from its initial value by more than ``threshold``, and from
-    when on it stays back within it (a pulse's or a doublet's end; NaN: held to the end)."""
-    if u is None or not np.isfinite(u).any():
+def input_times(t: np.ndarray, u: np.ndarray | None, threshold: float, lead: int = 1) -> tuple[float, float]:
+    """When an input first departs from its initial value (the mean of its first ``lead``
+    samples: the record's steady start) by more than ``threshold``, and from when on it stays
+    back within it (a pulse's or a doublet's end; NaN: held to the end)."""
+    if u is None or not np.isfinite(u[:lead]).all():
         return math.nan, math.nan
-    away = np.abs(u - u[np.flatnonzero(np.isfinite(u))[0]]) > threshold
+    away = np.abs(u - np.mean(u[:lead])) > threshold
     if not away.any():
         return math.nan, math.nan
     i0, i1 = int(np.argmax(away)), int(np.flatnonzero(away)[-1])
@@ -209,10 +210,12 @@ def oscillation(t: np.ndarray, x: np.ndarray, after_s: float, threshold: float =
 
 
 def spiral_trend(t: np.ndarray, roll: np.ndarray, release_s: float) -> float:
-    """Change of the bank magnitude from the release to the end (+ diverging, - recovering)."""
+    """Change of the bank magnitude from the release to the end (+ diverging, - recovering):
+    means over the :data:`RELEASE_S` before the release and the :data:`END_S` at the end, so a
+    sample's noise does not decide a trend judged within +-1 deg."""
     if not math.isfinite(release_s):
         return math.nan
-    return abs(float(roll[-1])) - abs(value_at(t, roll, release_s))
+    return abs(end_mean(t, roll)) - abs(mean_between(t, roll, release_s - RELEASE_S, release_s))
 
 
 def _release(tr: Trace) -> float:
@@ -260,8 +263,7 @@ METRIC_FUNCTIONS: dict[str, Callable[[Trace], float]] = {
     "dutch_roll_period_s": _oscillation("r_deg_s", 0, 0.5), "dutch_roll_damping": _oscillation("r_deg_s", 1, 0.5),
     "roll_rate_deg_s": lambda tr: steady_roll_rate(tr.time_s, tr["p_deg_s"], tr.start_s, ROLL_WINDOW_S),
     "spiral_roll_change_deg": lambda tr: spiral_trend(tr.time_s, tr["roll_deg"], _release(tr)),
-    "turn_aileron_deg": lambda tr: mean_between(tr.time_s, tr["aileron_deg"], tr.time_s[0],
-                                                tr.start_s if math.isfinite(tr.start_s) else tr.time_s[-1]),
+    "turn_aileron_deg": lambda tr: mean_between(tr.time_s, tr["aileron_deg"], _release(tr) - STEADY_S, _release(tr)),
     "sideslip_deg": _steady("beta_deg"), "roll_deg": _steady("roll_deg"), "aileron_deg": _steady("aileron_deg"),
 }
 
@@ -360,11 +362,18 @@ def _test_of(th: TimeHistory) -> Part60Test | None:
     return None
 
 
-def _input_window(test: Part60Test | None, t: np.ndarray, data: Mapping[str, np.ndarray]) -> tuple[float, float]:
+def _input_window(test: Part60Test | None, t: np.ndarray, data: Mapping[str, np.ndarray],
+                  pilot: Mapping[str, object], lead: int) -> tuple[float, float]:
+    """When the test's input starts and ends in the data. A pilot loop on the input's axis that
+    ends (a turn held, then the wheel released) ends the input where the record says it ends:
+    a held surface moves too little to be seen returning."""
     ch = INPUT_CHANNEL.get(test.id) if test else None
     if ch is None:
         return 0.0, math.nan
-    return input_times(t, data.get(ch), INPUT_THRESHOLD.get(ch, 0.5))
+    start, end = input_times(t, data.get(ch), DEPARTURE.get(ch, 0.5), lead)
+    loop = pilot.get(AXIS_OF_INPUT.get(ch, ""))
+    released = loop[-1].get("end_s") if isinstance(loop, list) and loop else None
+    return start, float(released) if released is not None else end
 
 
 # --------------------------------------------------------------------------- the replay
@@ -457,7 +466,8 @@ def compare_time_history(sim, th: TimeHistory, *, test: Part60Test | None = None
     test = test or _test_of(th)
     t = np.asarray(th.time_s, float) - float(th.time_s[0])
     data = data_channels(th)
-    start, end = _input_window(test, t, data)
+    start, end = _input_window(test, t, data, dict(th.meta.pilot) if pilot is None else dict(pilot),
+                               th.steady_lead())
     title = getattr(th.meta, "title", "") or Path(th.path).stem
     out = TimeHistoryComparison(Path(th.path), title, test, t, data, {}, start, end)
     out.maneuver, out.trajectory, out.loops, out.failure = _fly(sim, th, test, pilot, t, data)
