@@ -15,6 +15,7 @@ import warnings
 from pathlib import Path
 
 import jsbsim
+import numpy as np
 import pytest
 from lxml import etree
 
@@ -231,3 +232,21 @@ def test_no_evidence_test_accepts_a_nan():
     d = MetricDiagnosis("roc_fpm", 2, 10.0, 5.0, nan, 100.0, False, "noise: too few points")
     assert noise_in_tolerances(d) == 1.0
     assert noise_in_tolerances(MetricDiagnosis("roc_fpm", 9, 10.0, 5.0, 20.0, 100.0, True, "")) == 0.2
+
+
+def test_a_change_that_breaks_the_model_shows_no_evidence_numbers():
+    """A change the model cannot fly or trim with (more failure rows than before) is rejected
+    for that, and its report cells show no BIC change or share (they would count failures:
+    +4e5 next to "explains -300 %" before); a NaN penalty does not pass as "no break"."""
+    from jsbsim_calib.calibration.loop import BREAKS, Candidate, Rows, breaks_reason
+    rows = lambda res, met: Rows(np.array(res, float), np.array(met), np.full(len(res), np.nan), [""] * len(res))
+    flown = rows([0.5, -0.2], ["roll_deg", "roll_deg"])
+    broken = rows([0.5, 30.0], ["roll_deg", ""])
+    assert breaks_reason(flown, flown) == "" and breaks_reason(broken, flown) == ""
+    assert breaks_reason(flown, broken).startswith(BREAKS) and "0 -> 900" in breaks_reason(flown, broken)
+    assert breaks_reason(flown, rows([0.5, float("nan")], ["roll_deg", ""])).startswith(BREAKS)   # NaN: a break
+    c = Candidate("Cl_beta_x", 1, {}, {}, (1.0, 2.0), None, 2, 4e5, 0.0, share=-3.0,
+                  reason=breaks_reason(flown, broken))
+    assert c.breaks and c.evidence_cells() == ("-", "-")
+    fair = Candidate("Cl_beta_x", 1, {}, {}, (1.0, 0.5), None, 2, -12.34, 0.0, share=0.8)
+    assert not fair.breaks and fair.evidence_cells() == ("-12.3", "80 %")

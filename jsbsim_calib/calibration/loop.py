@@ -42,6 +42,7 @@ from .fit import FitResult, fit
 MIN_EVIDENCE = 10.0      # BIC decrease for "very strong" evidence (Kass & Raftery)
 MIN_HELD_GAIN = 0.10     # cross-validated residual sum of squares must fall by 10 %
 MATERIAL = 0.25          # the effect must move a prediction by a quarter of a tolerance (scale)
+BREAKS = "breaks the model"   # the reason of a candidate that fails where the model did not
 MIN_EXPLAINED = 0.6      # share of the structured residual (beyond noise) the effect must explain
 NOISE_FLOOR = 0.02       # smallest noise the likelihood assumes, in tolerances (scales)
 MAX_EFFECTS = 4
@@ -174,6 +175,15 @@ class Candidate:
     @property
     def score(self) -> float:
         return -self.delta_bic
+
+    @property
+    def breaks(self) -> bool:
+        """It fails where the model flew or trimmed: its BIC change and share count failures."""
+        return self.reason.startswith(BREAKS)
+
+    def evidence_cells(self) -> tuple[str, str]:
+        """Its BIC change and explained share as a report shows them ("-" where it breaks the model)."""
+        return ("-", "-") if self.breaks else (f"{self.delta_bic:+.1f}", f"{100 * self.share:.0f} %")
 
     def as_dict(self) -> dict:
         js = _js
@@ -338,8 +348,17 @@ def score(ev: Evidence, start: Round, ch: Change, fitted: Fitted, trial: Simulat
     held_rss = (start.held_rss, ev.rows(trial, held).rss()) if held else None
     c = Candidate(ch.name, start.number, dict(fitted.values), dict(fitted.stderr), (r0.rss(), r1.rss()), held_rss,
                   len(r0.residual), dbic, material, explained, share, affects=tuple(moves), kind=ch.kind, axis=ch.axis)
-    c.reason = "; ".join(evidence_failures(dbic, material, own, share))
+    c.reason = breaks_reason(r0, r1) or "; ".join(evidence_failures(dbic, material, own, share))
     return c
+
+
+def breaks_reason(before: Rows, after: Rows) -> str:
+    """Why a change is rejected outright: it fails (penalty rows) where the model flew or
+    trimmed, so its BIC change and share would count failures, not a fit ("" if it does not)."""
+    if after.penalty() <= before.penalty():
+        return ""
+    return f"{BREAKS}: it cannot fly or trim where the model did (failure rows {before.penalty():.3g} -> " \
+           f"{after.penalty():.3g})"
 
 
 def _try(ev: Evidence, start: Round, current: Simulator, factors: FactorSet, ch: Change) -> Candidate | str:
@@ -366,8 +385,8 @@ def try_changes(ev: Evidence, start: Round, current: Simulator, changes: Sequenc
             say(f"round {start.number}: {ch.name}: {c}")
             continue
         tried.append(c)
-        say(f"round {start.number}: {ch.name:34s} BIC {c.delta_bic:+10.1f}  explains {100 * c.share:5.0f} %  "
-            f"{'passes the fit tests' if not c.reason else 'rejected: ' + c.reason}")
+        numbers = "" if c.breaks else f"BIC {c.delta_bic:+10.1f}  explains {100 * c.share:5.0f} %  "
+        say(f"round {start.number}: {ch.name:34s} {numbers}{'passes the fit tests' if not c.reason else 'rejected: ' + c.reason}")
     return tried
 
 

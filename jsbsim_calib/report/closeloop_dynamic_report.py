@@ -85,7 +85,8 @@ def _candidate_table(result: CloseLoopDynamicResult) -> list[str]:
         fac = "; ".join(f"{k.split('.', 1)[-1]} = {v:.4g}" + (f" +/- {c.stderr[k]:.2g}" if c.stderr.get(k) else "")
                         for k, v in c.factors.items())
         cv = f"{c.cv[0]:.3g} -> {c.cv[1]:.3g}" if c.cv else "-"
-        L.append(f"| {c.round} | {c.effect} | {c.axis} | {c.delta_bic:+.1f} | {100 * c.share:.0f} % | {cv} | {fac} | "
+        bic, share = c.evidence_cells()
+        L.append(f"| {c.round} | {c.effect} | {c.axis} | {bic} | {share} | {cv} | {fac} | "
                  f"{'**added**' if c.accepted else c.reason} |")
     return L + [""]
 

@@ -261,7 +261,8 @@ def write_close_loop_report(result, out_dir: Path, written: Path | None = None) 
         fac = "; ".join(f"{k.split('.', 1)[1]} = {v:.4g}" + (f" +/- {c.stderr[k]:.2g}" if c.stderr.get(k) else "")
                         for k, v in c.factors.items())
         cv = f"{c.cv[0]:.3g} -> {c.cv[1]:.3g}" if c.cv else "-"
-        L.append(f"| {c.round} | {c.effect} | {c.delta_bic:+.1f} | {100 * c.share:.0f} % | "
+        bic, share = c.evidence_cells()
+        L.append(f"| {c.round} | {c.effect} | {bic} | {share} | "
                  f"{c.rss_held[0]:.3g} -> {c.rss_held[1]:.3g} | {cv} | {fac} | "
                  f"{'**added**' if c.accepted else c.reason} |")
     L += [""]
