@@ -57,14 +57,15 @@ def _f(name, neutral, lower, upper, unit, steps, moves, applies_to, doc, baked=F
 
 # The fit steps, in the order the calibration runs them: stage 1 (POH) fits the aerodynamic,
 # propeller and engine factors, then fuel flow; stage 2a (flight-test trims) runs the method's
-# steps and refits stage 1 last (jsbsim_calib.calibration.steady and .trims declare what each
+# steps, then refits stage 1's factors with the control, P-factor and flap steps' jointly to all
+# the steady data ("steady refit"; jsbsim_calib.calibration.steady and .trims declare what each
 # step fits them to). A factor lists the steps that set it; "effect" marks the factors of the
 # effect library (jsbsim_calib.calibration.effects). Stage 2b (jsbsim_calib.calibration.dynamic) runs the
 # dynamic steps, each axis its own fit against flown maneuvers.
 STEPS = ("steady", "fuel flow", "pitch", "control", "pfactor", "flaps", "steady refit", "roll dynamics",
          "pitch dynamics", "yaw dynamics", "effect")
 DYNAMIC_STEPS = ("roll dynamics", "pitch dynamics", "yaw dynamics")   # stage 2b (time domain)
-STAGE1 = ("steady", "steady refit")          # steps of the 16 coupled stage-1 factors
+STAGE1 = ("steady", "steady refit")          # steps of the 16 coupled stage-1 factors (the refit: more)
 POH = ("roc_fpm", "pct_power", "rpm")        # what the stage-1 factors move
 
 
@@ -135,26 +136,26 @@ FACTORS: tuple[Factor, ...] = (
     _f("K_de_slope", 1.0, 0.5, 3.0, "-", ("control", "pitch dynamics"), ("elevator_deg",),
        "elevator circulation (eq. 3.36)",
        "scales elevator effectiveness: > 1 smaller trim elevator"),
-    _f("K_de_offset", 0.0, -5.0, 5.0, "m2/s", ("control",), ("elevator_deg",),
+    _f("K_de_offset", 0.0, -5.0, 5.0, "m2/s", ("control", "steady refit"), ("elevator_deg",),
        "elevator circulation (eq. 3.36)",
        "adds circulation on the elevator span: + tail lift up (nose down), falls with speed"),
     _f("K_da_slope", 1.0, 0.5, 3.0, "-", ("control", "roll dynamics"), ("aileron_deg",),
        "aileron circulation (eq. 3.36)",
        "scales aileron effectiveness: > 1 smaller trim aileron"),
-    _f("K_da_offset", 0.0, -5.0, 5.0, "m2/s", ("control",), ("aileron_deg",),
+    _f("K_da_offset", 0.0, -5.0, 5.0, "m2/s", ("control", "steady refit"), ("aileron_deg",),
        "aileron circulation (eq. 3.36)",
        "adds antisymmetric aileron circulation: + right-roll moment"),
-    _f("K_dr_slope", 1.0, 0.5, 3.0, "-", ("control", "pfactor"), ("rudder_deg",),
+    _f("K_dr_slope", 1.0, 0.5, 3.0, "-", ("control", "pfactor", "steady refit"), ("rudder_deg",),
        "rudder circulation (eq. 3.36)",
        "scales rudder effectiveness: > 1 smaller trim rudder"),
-    _f("K_dr_offset", 0.0, -5.0, 5.0, "m2/s", ("control", "pfactor"), ("rudder_deg",),
+    _f("K_dr_offset", 0.0, -5.0, 5.0, "m2/s", ("control", "pfactor", "steady refit"), ("rudder_deg",),
        "rudder circulation (eq. 3.36)",
        "adds fin circulation as a positive (trailing edge left) rudder does: nose-left moment"),
     # The method bounds K_PF to [0, 0.5] for its form applied on every strip; applied once as
     # eq. 3.38 the C172 flight-test climbs need about 5 (the term also stands for the
     # slipstream swirl on the fin, which the strip model lacks, and trades with K_dr_slope):
     # bound widened to 5, measured, see README.
-    _f("K_PF", 0.0, 0.0, 5.0, "-", ("pfactor",), ("rudder_deg", "aileron_deg"),
+    _f("K_PF", 0.0, 0.0, 5.0, "-", ("pfactor", "steady refit"), ("rudder_deg", "aileron_deg"),
        "yawing moment N = -K_PF T (D/2) sin(alpha) (eq. 3.38)",
        "P-factor: + nose-left yaw growing with thrust and alpha (right rudder in climbs)"),
     # not in the method (it names the slipstream as a missing model): the momentum-theory slipstream
@@ -168,15 +169,15 @@ FACTORS: tuple[Factor, ...] = (
        "slipstream swirl at the fin (momentum theory, free vortex)",
        "scales the swirl's sideslip at the fin: 1 the theory, > 1 more nose-left yaw with power (right rudder)"),
     # --- flaps (Table 3.6, eq. 3.42-3.45)
-    _f("K_dcd0_flaps", 0.0, -2.0, 2.0, "-", ("flaps",), ("roc_fpm",),
+    _f("K_dcd0_flaps", 0.0, -2.0, 2.0, "-", ("flaps", "steady refit"), ("roc_fpm",),
        "flap strips: profile drag per flap degree (eq. 3.42)",
        "adds K times the per-degree flap profile-drag estimate: + more flaps-down drag"),
-    _f("K_dcm_flaps", 0.0, -3.0, 3.0, "-", ("flaps",), ("elevator_deg",),
+    _f("K_dcm_flaps", 0.0, -3.0, 3.0, "-", ("flaps", "steady refit"), ("elevator_deg",),
        "flap strips: section moment per flap degree (eq. 3.44)",
        "adds K times the per-degree flap moment estimate: + more nose-down with flaps"),
     # not in the method: its flap step cannot move the flaps-down trim attitude, which is set
     # by the flap lift increment (see the README)
-    _f("K_dcl_flaps", 1.0, 0.5, 1.5, "-", ("flaps",), ("pitch_deg", "roc_fpm"),
+    _f("K_dcl_flaps", 1.0, 0.5, 1.5, "-", ("flaps", "steady refit"), ("pitch_deg", "roc_fpm"),
        "flap strips: lift increment of the flap (strip theory)",
        "scales the flap lift increment: < 1 less lift from the flaps, higher flaps-down pitch attitude"),
     # --- damping (Table 3.7, eq. 3.48-3.56): stage 2b, each axis its own fit. The method's bounds

@@ -9,8 +9,8 @@ cannot buy its fit with what earlier steps matched.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-from typing import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -63,12 +63,14 @@ class PointSet:
     indices: list[int]
     conditions: list[Condition]
     metrics: tuple[str, ...]
+    scales: Mapping[str, float] = field(default_factory=dict)   # metric -> share of its tolerance (default 1)
 
     @classmethod
-    def from_dataset(cls, ds: Dataset, sim: Simulator, indices: Sequence[int] | None = None, metrics=None):
+    def from_dataset(cls, ds: Dataset, sim: Simulator, indices: Sequence[int] | None = None, metrics=None,
+                     scales: Mapping[str, float] | None = None):
         conds = KINDS[ds.kind].conditions(ds, sim.geometry)
         idx = list(range(len(ds))) if indices is None else list(indices)
-        return cls(ds.kind, ds, idx, [conds[i] for i in idx], tuple(metrics or ds.metrics))
+        return cls(ds.kind, ds, idx, [conds[i] for i in idx], tuple(metrics or ds.metrics), dict(scales or {}))
 
     def target(self, i: int, m: str) -> float:
         return float(self.dataset.frame.iloc[self.indices[i]][m])
@@ -81,7 +83,8 @@ def trim_points(sim: Simulator, ps: PointSet) -> list[TrimResult]:
 def point_residuals(sim: Simulator, ps: PointSet, metrics: Sequence[str],
                     results: list[TrimResult] | None = None,
                     tol_scale: float = 1.0) -> tuple[list[float], list[str], int]:
-    """Residuals (model - data)/(tolerance x ``tol_scale``) of a point set, with the throttle
+    """Residuals (model - data)/(tolerance x ``tol_scale`` x the set's scale of the metric) of a
+    point set, with the throttle
     penalty for level points that need more than full throttle. Returns residuals, labels,
     number failed."""
     value = KINDS[ps.dataset.kind].value
@@ -108,7 +111,7 @@ def point_residuals(sim: Simulator, ps: PointSet, metrics: Sequence[str],
             if not np.isfinite(ref):
                 continue
             v = value(m, t) if ok else np.nan
-            tol = METRICS[m].tol_for(ref) * tol_scale
+            tol = METRICS[m].tol_for(ref) * tol_scale * ps.scales.get(m, 1.0)
             res.append((v - ref) / tol if np.isfinite(v) else 0.0)
             lab.append(f"{ps.name}[{ps.indices[k]}].{m}")
         if cond.mode == "level":
@@ -119,11 +122,14 @@ def point_residuals(sim: Simulator, ps: PointSet, metrics: Sequence[str],
 
 @dataclass(frozen=True)
 class Residual:
-    """Residuals of one step: a data kind, which of its points, which metric."""
+    """Residuals of one step: a data kind, which of its points, which metric, and the share of
+    the metric's tolerance a residual is divided by (1: the tolerance; 0.2 of the POH climb's
+    100 fpm: its 20 fpm RMSE target)."""
 
     kind: str            # snapshot | flap_climb | poh_climb | poh_cruise
     points: str          # all | clean (flaps up) | flaps (flaps down) | subset (the stage-1 subset)
     metric: str
+    scale: float = 1.0
 
 
 def _select(ds: Dataset, which: str) -> list[int]:
@@ -138,15 +144,15 @@ def _select(ds: Dataset, which: str) -> list[int]:
 
 
 def point_sets(sim: Simulator, data: dict[str, Dataset], residuals: Sequence[Residual]):
-    groups: dict[tuple[str, str], list[str]] = {}
+    groups: dict[tuple[str, str], dict[str, float]] = {}
     for r in residuals:
-        groups.setdefault((r.kind, r.points), []).append(r.metric)
+        groups.setdefault((r.kind, r.points), {})[r.metric] = r.scale
     sets = []
-    for (kind, which), metrics in groups.items():
+    for (kind, which), scales in groups.items():
         ds = data.get(kind)
         idx = _select(ds, which) if ds is not None else []
         if idx:
-            sets.append(PointSet.from_dataset(ds, sim, idx, metrics))
+            sets.append(PointSet.from_dataset(ds, sim, idx, tuple(scales), {m: s for m, s in scales.items() if s != 1.0}))
     return sets
 
 

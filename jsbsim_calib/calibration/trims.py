@@ -3,18 +3,20 @@ residuals and freezing them. A step is data: its name (the registry's factors of
 what it fits), the residuals it fits them to and the ones it holds."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Sequence
 
 import numpy as np
 
 from ..data.schemas import Dataset
 from ..core.executor import SERIAL, Executor
-from ..factors import FactorSet, step_factors
+from ..factors import REGISTRY, FactorSet, step_factors
 from ..jsbsim.simulator import Simulator
 from .fit import MAX_NFEV, PRIOR_WEIGHT, FitResult, fit
 from .points import FAIL_PENALTY, HOLD_TOL_SCALE, Residual, point_sets, held_sets, point_residuals
 
+TARGET_SCALE = 0.2           # the POH's RMSE targets (20 fpm, 10 rpm, 1 point) in shares of their tolerances
+REFIT_LEGS = ((1.0, 0.02), (1.0, 0.002))   # the refit starts where the steps stopped: no path of priors
 STEP_PRIOR = 0.1             # stage 2a's steps fit a few factors the trims identify: a weaker pull
 
 
@@ -33,11 +35,12 @@ class TrimStep:
     hold: tuple[Residual, ...] = ()
     prior_at_start: bool = False     # pull factors toward their values at the step's start, not neutral
     prior: float = STEP_PRIOR        # weight of that pull (see fit)
+    legs: tuple[tuple[float, float], ...] | None = None   # the fit's legs (None: fit.LEGS)
 
 
 POH_HOLD = (Residual("poh_climb", "subset", "roc_fpm"), Residual("poh_cruise", "subset", "pct_power"),
-            Residual("poh_cruise", "subset", "rpm"))
-FLIGHT_TEST_HOLD = tuple(Residual("snapshot", "all", m) for m in ("pitch_deg", "elevator_deg", "aileron_deg",
+            Residual("poh_cruise", "subset", "rpm"))       # stage 2b's steps hold the POH predictions
+FLIGHT_TEST = tuple(Residual("snapshot", "all", m) for m in ("pitch_deg", "elevator_deg", "aileron_deg",
                                                                     "rudder_deg")) \
     + (Residual("flap_climb", "all", "roc_fpm"),)
 
@@ -52,26 +55,41 @@ TRIM_STEPS: tuple[TrimStep, ...] = (
              (Residual("snapshot", "clean", "elevator_deg"), Residual("snapshot", "all", "aileron_deg"),
               Residual("snapshot", "all", "rudder_deg")),
              "control effectiveness (method 3.2.2): trim surfaces / 1 deg; the elevator of flaps-down "
-             "snapshots waits for the flap step (the flap moment is not fitted yet)", POH_HOLD),
+             "snapshots waits for the flap step (the flap moment is not fitted yet)"),
     TrimStep("pfactor", step_factors("pfactor"), (Residual("snapshot", "all", "rudder_deg"),),
              "P-factor (method 3.2.2, eq. 3.41): rudder of all snapshots / 1 deg; the rudder factors are "
-             "refitted with K_PF (the control step could not see the thrust-dependent yaw and set them for it)",
-             POH_HOLD),
+             "refitted with K_PF (the control step could not see the thrust-dependent yaw and set them for it)"),
     TrimStep("flaps", step_factors("flaps"),
              (Residual("flap_climb", "all", "roc_fpm"), Residual("snapshot", "flaps", "pitch_deg"),
               Residual("snapshot", "flaps", "elevator_deg")),
              "flap aerodynamics (method 3.2.3): flaps-down climb rate / 100 fpm and pitch / 1 deg, plus the "
              "flaps-down trim elevator / 1 deg (where the flap moment shows most) and a flap-lift factor "
-             "(the flaps-down attitude is set by the flap lift, which the method's two factors cannot move)",
-             POH_HOLD),
+             "(the flaps-down attitude is set by the flap lift, which the method's two factors cannot move)"),
     TrimStep("steady refit", step_factors("steady refit"),
-             (Residual("poh_climb", "subset", "roc_fpm"), Residual("poh_cruise", "subset", "pct_power"),
-              Residual("poh_cruise", "subset", "rpm"), Residual("poh_cruise", "subset", "gph")),
-             "stage 1 again from its values, the flight-test factors frozen: the trims bring drag the POH fit "
-             "did not see (a 5 deg climb rudder, the trimmed tail load); the flight-test predictions are held "
-             "and the factors are pulled toward their stage-1 values",
-             FLIGHT_TEST_HOLD, prior_at_start=True, prior=PRIOR_WEIGHT),
+             (Residual("poh_climb", "subset", "roc_fpm", TARGET_SCALE),
+              Residual("poh_cruise", "subset", "pct_power", TARGET_SCALE),
+              Residual("poh_cruise", "subset", "rpm", TARGET_SCALE), Residual("poh_cruise", "subset", "gph"))
+             + FLIGHT_TEST,
+             "stage 1's factors and those of the control, P-factor and flap steps refitted jointly to every kind "
+             "of steady data from where the steps left them: the trims bring drag the POH fit did not see (a 5 deg "
+             "climb rudder, the trimmed tail load) and the steps moved the POH predictions (POH climb RMSE 16.8 -> "
+             "41 fpm with stage 1 refitted alone, the flight-test trims held); POH climb, cruise power and RPM / "
+             "their RMSE targets (20 fpm, 1 point, 10 rpm), fuel flow, snapshots and flap climbs / their "
+             "tolerances; the factors are pulled toward their values at the step's start. The pitch step's "
+             "factors (static margin, wing angle) stay as it fitted them, and so do the elevator and aileron "
+             "power stage 2b refits: refitted here they moved the phugoid period from 1 % to 8.7 % off",
+             prior_at_start=True, prior=PRIOR_WEIGHT, legs=REFIT_LEGS),
 )
+
+
+def fitted_after(step: TrimStep, skipped: set[str]) -> tuple[str, ...]:
+    """The step's factors less those that only skipped steps set before it: a step left out
+    (``--skip pfactor``) leaves its factors where they were, and the joint refit does not fit
+    them in its place."""
+    def set_before(name: str) -> tuple[str, ...]:
+        steps = REGISTRY[name].steps if name in REGISTRY else ()
+        return steps[:steps.index(step.name)] if step.name in steps else ()
+    return tuple(n for n in step.factors if not set_before(n) or not set(set_before(n)) <= skipped)
 
 
 def trims_stage(sim: Simulator, data: dict[str, Dataset], *, start: FactorSet,
@@ -87,7 +105,9 @@ def trims_stage(sim: Simulator, data: dict[str, Dataset], *, start: FactorSet,
     """
     results = []
     current = start
+    skipped = {st.name for st in TRIM_STEPS} - {st.name for st in steps}
     for step in steps:
+        step = replace(step, factors=fitted_after(step, skipped))
         sets = point_sets(sim, data, step.residuals)
         if not sets:
             if progress:
@@ -108,7 +128,7 @@ def trims_stage(sim: Simulator, data: dict[str, Dataset], *, start: FactorSet,
 
         out = fit(step.name, list(step.factors), current, residuals, sim=sim,
                   progress=progress, max_nfev=max_nfev, prior=step.prior if prior is None else prior,
-                  prior_center=current if step.prior_at_start else None, executor=executor)
+                  prior_center=current if step.prior_at_start else None, legs=step.legs, executor=executor)
         out.notes.append(step.doc)
         for ps, what in [(p, "fitted") for p in sets] + [(p, "held at the step's start") for p in held]:
             rows = [str(ps.dataset.frame["table"].iloc[i]) if "table" in ps.dataset.frame else str(i)
