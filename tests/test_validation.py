@@ -133,9 +133,9 @@ def test_folds_are_independent_tasks_with_the_same_bits_on_a_pool():
 def test_stage2a_flap_folds_refit_only_the_steps_that_use_them():
     v = validate_trims(REPO, "c172", folds=["flaps 20", "flaps 30"], max_nfev=FAST_NFEV, control=False)
     for fr in v.folds:
-        # the flaps-down snapshots enter the control, P-factor and flap steps, not the pitch step
-        # (flaps-up pitch) nor the steady refit (POH)
-        assert fr.refitted == ("control", "pfactor", "flaps")
+        # the flaps-down snapshots enter the control, P-factor and flap steps and the joint refit
+        # (every snapshot), not the pitch step (flaps-up pitch)
+        assert fr.refitted == ("control", "pfactor", "flaps", "steady refit")
         assert {(m.kind, m.metric) for m in fr.metrics} == {("snapshot", x) for x in
                                                            ("pitch_deg", "elevator_deg", "aileron_deg", "rudder_deg")}
         for m in fr.metrics:
