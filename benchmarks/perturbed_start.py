@@ -7,7 +7,7 @@ there (as the main job does, nothing written) and prints, against the committed 
 (``aircraft/c172/calibration.json``): each fitted factor's move in standard errors of the fit
 that set it last, and each POH and flight-test prediction's move as a share of its tolerance,
 with the stated tolerances (docs/model.md, "Reproducible fits": 4 standard errors, 0.2 of a
-tolerance). About 4-5 min on one core. The SR20's stage 1 is checked the same way, at one
+tolerance). About 6 min on one core. The SR20's stage 1 is checked the same way, at one
 standard error and a tenth of a tolerance, by ``tests/test_reproducible.py``.
 """
 from __future__ import annotations

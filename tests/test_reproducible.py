@@ -39,7 +39,7 @@ PERTURBATION = 1e-8           # relative to the normalized range: a round-off-si
 FACTOR_TOL_SE = 1.0           # one stage (SR20 stage 1): factors within this many standard errors
 PREDICTION_TOL = 0.1          # ... and predictions within this share of their tolerance
 # The C172's whole chain from a perturbed start (4 standard errors, 0.2 of a tolerance) is
-# measured by benchmarks/perturbed_start.py: it is the main job again, 4-5 minutes.
+# measured by benchmarks/perturbed_start.py: it is the main job again, about 6 minutes.
 
 
 def _copy_root(tmp: Path) -> Path:
