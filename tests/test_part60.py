@@ -68,6 +68,7 @@ def test_tolerances_take_the_less_restrictive_value_and_ranges():
     assert judge(trend, 0.3, -0.8).verdict == PASS                  # both neutral (within +-1 deg)
     assert judge(trend, 0.43, 1.05).verdict == PASS                  # neutral and mildly diverging: one side
     assert judge(trend, -0.5, 1.5).verdict == FAIL and judge(trend, 3.0, -0.2).verdict == FAIL
+    assert judge(trend, 0.0, 5.0).verdict == FAIL and judge(trend, 0.0, -0.5).verdict == PASS   # zero: no side
 
 
 def test_measurements_on_known_signals():

@@ -84,9 +84,8 @@ def point_residuals(sim: Simulator, ps: PointSet, metrics: Sequence[str],
                     results: list[TrimResult] | None = None,
                     tol_scale: float = 1.0) -> tuple[list[float], list[str], int]:
     """Residuals (model - data)/(tolerance x ``tol_scale`` x the set's scale of the metric) of a
-    point set, with the throttle
-    penalty for level points that need more than full throttle. Returns residuals, labels,
-    number failed."""
+    point set, with the throttle penalty for level points that need more than full throttle.
+    Returns residuals, labels, number failed."""
     value = KINDS[ps.dataset.kind].value
     res, lab, failed = [], [], 0
     results = results if results is not None else trim_points(sim, ps)
@@ -152,7 +151,7 @@ def point_sets(sim: Simulator, data: dict[str, Dataset], residuals: Sequence[Res
         ds = data.get(kind)
         idx = _select(ds, which) if ds is not None else []
         if idx:
-            sets.append(PointSet.from_dataset(ds, sim, idx, tuple(scales), {m: s for m, s in scales.items() if s != 1.0}))
+            sets.append(PointSet.from_dataset(ds, sim, idx, tuple(scales), scales))
     return sets
 
 

@@ -302,11 +302,11 @@ def trend_of(x: float, neutral: float | None) -> str:
 
 
 def same_trend(ref: float, model: float, neutral: float | None) -> bool:
-    """Both neutral, or not on opposite sides of zero: a value within the neutral band
-    (:func:`trend_of`) still leans to its side, so a neutral flight test and a mildly signed
-    model on the same side agree, and on the other side disagree."""
+    """Both neutral, or the same sign: a value within the neutral band (:func:`trend_of`) still
+    leans to its side, so a neutral flight test and a mildly signed model on the same side
+    agree, and on the other side disagree (an exact zero has no side)."""
     both_neutral = trend_of(ref, neutral) == trend_of(model, neutral) == "neutral"
-    return both_neutral or (ref > 0) == (model > 0) or ref == 0 or model == 0
+    return both_neutral or np.sign(ref) == np.sign(model)
 
 
 def _alternative(t: Tolerance, ref: float) -> bool:

@@ -280,6 +280,19 @@ def parse_meta(doc, name: str) -> tuple[TimeHistoryMeta | None, list[Problem]]:
                            doc.get("notes", "")), []
 
 
+def input_times(t: np.ndarray, u: np.ndarray | None, threshold: float, lead: int = 1) -> tuple[float, float]:
+    """When an input first departs from its initial value (the mean of its first ``lead``
+    samples: the record's steady start) by more than ``threshold``, and from when on it stays
+    back within it (a pulse's or a doublet's end; NaN: held to the end)."""
+    if u is None or not np.isfinite(u[:lead]).all():
+        return math.nan, math.nan
+    away = np.abs(u - np.mean(u[:lead])) > threshold
+    if not away.any():
+        return math.nan, math.nan
+    i0, i1 = int(np.argmax(away)), int(np.flatnonzero(away)[-1])
+    return float(t[i0]), float(t[i1 + 1]) if i1 + 1 < t.size else math.nan
+
+
 # --------------------------------------------------------------------------- the time history
 @dataclass
 class TimeHistory:
@@ -315,9 +328,8 @@ class TimeHistory:
         t = self.time_s - self.time_s[0]
         end = STEADY_LEAD_S
         for name in self.meta.inputs:
-            x = self.channel(name)
-            away = np.flatnonzero(np.abs(x - x[0]) > DEPARTURE.get(name, 0.5))
-            end = min(end, float(t[away[0]])) if away.size else end
+            departs = input_times(t, self.channel(name), DEPARTURE.get(name, 0.5))[0]
+            end = min(end, departs) if math.isfinite(departs) else end
         for loop in self.meta.pilot.values():
             starts = [float(w.get("start_s", 0.0)) for w in loop if "target" in w] if isinstance(loop, list) else []
             end = min([end, *starts])

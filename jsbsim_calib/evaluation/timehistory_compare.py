@@ -35,7 +35,7 @@ from ..core.errors import CalibError
 from ..data.dynamic_tests import ROLL_WINDOW_S
 from ..data.flighttest import to_data_sign
 from ..data.part60_tests import INPUT_CHANNEL, METRIC_CHANNEL, NA, MetricVerdict, Part60Test, catalogue_test, judge
-from ..data.timehistory import DEPARTURE, TimeHistory, maneuver_from_time_history
+from ..data.timehistory import DEPARTURE, TimeHistory, input_times, maneuver_from_time_history
 from ..jsbsim.trajectory import RATE_HZ, Hold, Maneuver, Trajectory, fly
 from .evaluate_dynamic import peak_rate, steady_roll_rate
 
@@ -87,19 +87,6 @@ class Trace:
     def __getitem__(self, name: str) -> np.ndarray:
         x = self.channels.get(name)
         return np.full(self.time_s.shape, np.nan) if x is None else x
-
-
-def input_times(t: np.ndarray, u: np.ndarray | None, threshold: float, lead: int = 1) -> tuple[float, float]:
-    """When an input first departs from its initial value (the mean of its first ``lead``
-    samples: the record's steady start) by more than ``threshold``, and from when on it stays
-    back within it (a pulse's or a doublet's end; NaN: held to the end)."""
-    if u is None or not np.isfinite(u[:lead]).all():
-        return math.nan, math.nan
-    away = np.abs(u - np.mean(u[:lead])) > threshold
-    if not away.any():
-        return math.nan, math.nan
-    i0, i1 = int(np.argmax(away)), int(np.flatnonzero(away)[-1])
-    return float(t[i0]), float(t[i1 + 1]) if i1 + 1 < t.size else math.nan
 
 
 # --------------------------------------------------------------------------- measurements
