@@ -14,6 +14,7 @@ towards the pressure side).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -64,6 +65,40 @@ def profile_drag_increment(delta_rad: np.ndarray, E: np.ndarray, kind: np.ndarra
 KAPPA = {"plain": 1.0, "slotted_flap": 0.5}
 
 
+@dataclass(frozen=True)
+class Deflection:
+    """The control-surface increments of strips at fixed deflections: what
+    :func:`section_coefficients` adds to the clean polar, worked out once for a state
+    whose deflections do not change while its circulation is solved."""
+
+    kappa: np.ndarray     # share of the zero-lift shift carried along alpha
+    dalpha: np.ndarray    # [rad] the zero-lift shift
+    dcl: np.ndarray       # constant lift increment
+    dcd: np.ndarray       # profile-drag increment
+    dcm: np.ndarray       # quarter-chord moment increment
+
+
+def deflection(delta_rad: np.ndarray, E: np.ndarray, kind: np.ndarray, lift_slope: np.ndarray) -> Deflection:
+    """The increments of strips deflected by ``delta_rad`` (chord fractions ``E``, surface kinds
+    ``kind``, linear lift slopes ``lift_slope`` [1/rad] for the constant part of the lift)."""
+    delta_rad = np.asarray(delta_rad, float)
+    E = np.asarray(E, float)
+    kind = np.asarray(kind)
+    has = (E > 0) & (delta_rad != 0.0)
+    eta = eta_deflection(delta_rad, kind)
+    dalpha = np.where(has, tau(E) * eta * delta_rad, 0.0)
+    kappa = np.where(kind == "slotted_flap", KAPPA["slotted_flap"], KAPPA["plain"])
+    return Deflection(kappa, dalpha, (1.0 - kappa) * lift_slope * dalpha,
+                      np.where(has, profile_drag_increment(delta_rad, E, kind), 0.0),
+                      np.where(has, dcm_ddelta(E) * eta * delta_rad, 0.0))
+
+
+def section_lift(polar_cl, alpha_eff_rad: np.ndarray, d: Deflection) -> np.ndarray:
+    """cl of strips at effective angles [rad] with the increments ``d``; ``polar_cl(alpha_deg)``
+    gives the clean sections' cl (the same bits as :func:`section_coefficients`'s cl)."""
+    return polar_cl(np.degrees(np.asarray(alpha_eff_rad, float) + d.kappa * d.dalpha)) + d.dcl
+
+
 def section_coefficients(polar, alpha_eff_rad: np.ndarray, delta_rad: np.ndarray,
                          E: np.ndarray, kind: np.ndarray, lift_slope: np.ndarray) -> tuple[np.ndarray, ...]:
     """cl, cd, cm (quarter chord) of strips at effective angle alpha_eff with deflection delta.
@@ -72,16 +107,8 @@ def section_coefficients(polar, alpha_eff_rad: np.ndarray, delta_rad: np.ndarray
     Reynolds numbers); ``lift_slope`` is the section's linear lift slope [1/rad] used for
     the constant part of the flap increment.
     """
+    d = deflection(delta_rad, E, kind, lift_slope)
     alpha_eff_rad = np.asarray(alpha_eff_rad, float)
-    delta_rad = np.asarray(delta_rad, float)
-    E = np.asarray(E, float)
-    kind = np.asarray(kind)
-    has = (E > 0) & (delta_rad != 0.0)
-    dalpha = np.where(has, tau(E) * eta_deflection(delta_rad, kind) * delta_rad, 0.0)
-    kappa = np.where(kind == "slotted_flap", KAPPA["slotted_flap"], KAPPA["plain"])
-    cl, _, _ = polar(np.degrees(alpha_eff_rad + kappa * dalpha))
+    cl = section_lift(lambda a: polar(a)[0], alpha_eff_rad, d)
     _, cd, cm = polar(np.degrees(alpha_eff_rad))
-    cl = cl + (1.0 - kappa) * lift_slope * dalpha
-    cd = cd + np.where(has, profile_drag_increment(delta_rad, E, kind), 0.0)
-    cm = cm + np.where(has, dcm_ddelta(E) * eta_deflection(delta_rad, kind) * delta_rad, 0.0)
-    return cl, cd, cm
+    return cl, cd + d.dcd, cm + d.dcm

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..geometry import AircraftGeometry, LiftingSurface
 from .lifting_line import LiftingLine, Strips, combine, freestream_dir, onset_velocity, surface_strips
-from .sections import section_coefficients
+from .sections import Deflection, deflection, section_coefficients, section_lift
 
 # Sign of each control's deflection on the strips it covers (positive = more strip lift),
 # per side (+1 right half, -1 left half, 0 vertical). JSBSim conventions for the inputs:
@@ -134,15 +134,24 @@ class StripModel:
         self._slope = (tab[0, :, hi] - tab[0, :, lo]) / math.radians(_GRID[hi] - _GRID[lo])
         self._table = tab
 
-    def polar(self, alpha_deg: np.ndarray, rows: np.ndarray | None = None):
-        """Clean-section cl, cd, cm of the strips (all, or ``rows``) at alpha [deg]."""
+    def _at(self, alpha_deg, rows):
+        """The table columns either side of alpha [deg], the weight of the upper one, the rows."""
         a = (np.asarray(alpha_deg, float) + 180.0) % 360.0
         pos = a / _STEP
         i = np.minimum(pos.astype(int), len(_GRID) - 2)
-        w = pos - i
-        r = np.arange(self.strips.n) if rows is None else rows
+        return i, pos - i, (np.arange(self.strips.n) if rows is None else rows)
+
+    def polar(self, alpha_deg: np.ndarray, rows: np.ndarray | None = None):
+        """Clean-section cl, cd, cm of the strips (all, or ``rows``) at alpha [deg]."""
+        i, w, r = self._at(alpha_deg, rows)
         t = self._table
         return tuple(t[k, r, i] * (1.0 - w) + t[k, r, i + 1] * w for k in range(3))
+
+    def polar_cl(self, alpha_deg: np.ndarray) -> np.ndarray:
+        """Clean-section cl of every strip at alpha [deg] (:meth:`polar`'s cl, alone)."""
+        i, w, r = self._at(alpha_deg, None)
+        t = self._table[0]
+        return t[r, i] * (1.0 - w) + t[r, i + 1] * w
 
     def line(self, alpha: float, beta: float = 0.0) -> LiftingLine:
         """Lifting line with the wake along the free stream in the plane of symmetry.
@@ -175,6 +184,15 @@ class StripModel:
         """cl, cd, cm of all strips at effective angles [rad] with deflections [rad]."""
         return section_coefficients(self.polar, alpha_eff, delta, self.E, self.kind, self._slope)
 
+    def lift(self, alpha_eff: np.ndarray, d: Deflection) -> np.ndarray:
+        """cl of all strips at effective angles [rad] with the increments ``d`` of
+        :meth:`deflection` (:meth:`sections`' cl, alone)."""
+        return section_lift(self.polar_cl, alpha_eff, d)
+
+    def deflection(self, delta: np.ndarray) -> Deflection:
+        """The control-surface increments of the strips at deflections [rad]."""
+        return deflection(delta, self.E, self.kind, self._slope)
+
     @property
     def lift_slope(self) -> np.ndarray:
         """Linear lift slope of each strip's section [1/rad] (-2..4 deg)."""
@@ -191,18 +209,19 @@ class StripModel:
         Umag = np.linalg.norm(U, axis=1)
         alpha_geo = np.arctan2(np.sum(U * st.e_normal, 1), np.sum(U * st.e_chord, 1))
         delta = self.deltas(controls)
+        d = self.deflection(delta)
         Vn = np.einsum("ijk,ik->ij", ll.V, st.e_normal)
         half_c = 0.5 * st.chord
 
         def residual(g):
             a_ind = -(Vn @ g) / Umag
-            cl, _, _ = self.sections(alpha_geo - a_ind, delta)
+            cl = self.lift(alpha_geo - a_ind, d)
             return g - half_c * Umag * cl, a_ind
 
         if gamma0 is None:
             # linear start: slope and zero-lift angle from the polar
             a0 = self.lift_slope
-            cl0, _, _ = self.sections(np.zeros(st.n), delta)
+            cl0 = self.lift(np.zeros(st.n), d)
             alpha0 = -cl0 / a0
             gamma = ll.solve(U, a0, alpha0)
         else:
@@ -214,8 +233,8 @@ class StripModel:
         it = 0
         while not converged and it < max_iter:
             it += 1
-            cl_p, _, _ = self.sections(alpha_geo - a_ind + h, delta)
-            cl_m, _, _ = self.sections(alpha_geo - a_ind - h, delta)
+            cl_p = self.lift(alpha_geo - a_ind + h, d)
+            cl_m = self.lift(alpha_geo - a_ind - h, d)
             slope = (cl_p - cl_m) / (2 * h)
             J = np.eye(st.n) - (half_c * slope)[:, None] * Vn
             try:
