@@ -110,19 +110,12 @@ def test_exit_code_for_missed_targets_is_documented():
     assert EXIT_TARGETS_MISSED == 3 and "3" in build_parser().epilog
 
 
-@pytest.mark.slow
-def test_calibrate_json_and_the_exit_code_of_missed_targets(tmp_path, capsys):
-    """SR20 stage 1 (not written): the verdicts as JSON, exit 3 when one is missed, 0 with --exit-zero."""
-    out = tmp_path / "cal.json"
-    argv = ["--root", str(REPO), "--quiet", "calibrate", "sr20", "--stage", "steady", "--no-write",
-            "--report-dir", str(tmp_path / "reports"), "--json", str(out), "--workers", "2"]
-    rc = main(argv)
-    d = json.loads(out.read_text())
-    missed = [v for v in d["verdicts"] if v["verdict"] == "FAIL"]
-    assert d["aircraft"] == "sr20" and d["written"] is False and d["targets_met"] == len(d["verdicts"]) - len(missed)
-    assert all(v["verdict"] in ("PASS", "FAIL") for v in d["verdicts"]) and "MISS" not in capsys.readouterr().out
-    assert rc == (EXIT_TARGETS_MISSED if missed else 0)
-    assert _verdict_exit(parse(*argv, "--exit-zero"), len(missed)) == 0
+def test_exit_zero_turns_missed_targets_into_success():
+    """`--exit-zero`: a run with missed targets exits 0 (the main job's test checks the JSON and
+    exit code 3 of a real run: tests/test_reproducible.py)."""
+    argv = ["calibrate", "c172", "--json", "x.json"]
+    assert _verdict_exit(parse(*argv), 2) == EXIT_TARGETS_MISSED and _verdict_exit(parse(*argv), 0) == 0
+    assert _verdict_exit(parse(*argv, "--exit-zero"), 2) == 0
 
 
 def test_synth_takes_an_aircraft_name_as_every_command_does_and_still_a_folder(tmp_path, capsys):
