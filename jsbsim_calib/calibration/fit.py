@@ -9,6 +9,7 @@ boundary" flags, standard errors where the Jacobian allows, cost, evaluations, w
 from __future__ import annotations
 
 import math
+import re
 import time
 import uuid
 from dataclasses import dataclass, field
@@ -28,6 +29,12 @@ FIT_TOL = 1e-9               # ftol = xtol = gtol of the least-squares solver
 MAX_RESTARTS = 2             # restarts of the optimizer within a leg
 RESTART_GAIN = 1e-6          # a restart must lower the cost by this share, or the leg ends
 MAX_NFEV = 600               # function evaluations of a whole fit
+
+# How well the data determine a factor (FitResult.determination; the identifiability tables)
+PRIOR_GROUP = "prior"        # the residual group of the prior's rows
+Z95 = 1.96                   # a 95 % interval is +/- Z95 standard errors
+LOOSE_SHARE = 0.25           # loose: the 95 % interval spans more than this share of the factor's range
+HELD_BY_PRIOR = 0.5          # held by the prior: the prior carries at least this share of its information
 
 
 class WorkLine(str):
@@ -66,6 +73,7 @@ class FitResult:
     residual_names: list[str] = field(default_factory=list)
     residuals: np.ndarray | None = None
     notes: list[str] = field(default_factory=list)
+    information: dict[str, list[tuple[str, float]]] = field(default_factory=dict)
 
     def at_boundary(self, name: str, tol: float = 1e-3) -> str:
         f = self.final.factor(name)
@@ -76,6 +84,30 @@ class FitResult:
         if v >= f.upper - tol * span:
             return "at upper bound"
         return ""
+
+    def determination(self, name: str) -> str:
+        """How well the data determine a factor: "not identified" (no standard error, or one
+        over half the factor's range), "held by the prior" (the prior carries most of its
+        information), "loose" (its 95 % interval spans over a quarter of its range), else
+        "determined"; a factor on a bound says so too."""
+        f, se = self.final.factor(name), self.stderr.get(name)
+        span = f.upper - f.lower
+        prior = dict(self.information.get(name, [])).get(PRIOR_GROUP, 0.0)
+        if se is None or not math.isfinite(se) or se > 0.5 * span:
+            word = "not identified"
+        elif prior >= HELD_BY_PRIOR:
+            word = "held by the prior"
+        elif 2.0 * Z95 * se > LOOSE_SHARE * span:
+            word = "loose"
+        else:
+            word = "determined"
+        bound = self.at_boundary(name)
+        return f"{word}, {bound}" if bound else word
+
+    def strongest_correlation(self, name: str) -> tuple[str, float] | None:
+        """The factor this one's estimate is most correlated with, and the coefficient."""
+        pairs = [(b if a == name else a, r) for (a, b), r in self.correl.items() if name in (a, b)]
+        return min(pairs, key=lambda p: (-abs(p[1]), p[0])) if pairs else None
 
     def report(self) -> str:
         """Text report in the lmfit manner."""
@@ -139,6 +171,31 @@ def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: Fac
             if d[i] > 0 and d[j] > 0:
                 corr[(names[i], names[j])] = float(cov[i, j] / (d[i] * d[j]))
     return out, corr
+
+
+def residual_group(label: str) -> str:
+    """The data a residual belongs to: its label without the row ("poh_climb[3].roc_fpm" ->
+    "poh_climb.roc_fpm"; a maneuver's metric stays as it is; the prior's rows: "prior")."""
+    return PRIOR_GROUP if label.startswith("prior ") else re.sub(r"\[[^\]]*\]", "", label)
+
+
+def _information(jac: np.ndarray | None, labels: list[str], names: list[str]) -> dict[str, list[tuple[str, float]]]:
+    """Per factor, the share of its Fisher information (the sum of its squared Jacobian column:
+    the weighted residuals' sensitivity) that each group of residuals carries, largest first:
+    which data determine it."""
+    if jac is None or jac.shape != (len(labels), len(names)):
+        return {}
+    groups = [residual_group(lab) for lab in labels]
+    rows = {g: [k for k, h in enumerate(groups) if h == g] for g in dict.fromkeys(groups)}
+    out = {}
+    for i, n in enumerate(names):
+        total = numerics.sum_sq(jac[:, i])
+        if not (math.isfinite(total) and total > 0.0):
+            out[n] = []
+            continue
+        shares = {g: numerics.sum_sq(jac[r, i]) / total for g, r in rows.items()}
+        out[n] = sorted(shares.items(), key=lambda kv: (-kv[1], kv[0]))
+    return out
 
 
 class FitProblem:
@@ -298,7 +355,8 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     se, corr = _stderr(res.jac, names, r_final, final)
     return FitResult(stage, names, start, final, cost0, 0.5 * numerics.sum_sq(r_final), nfev,
                      state["njev"], int(res.status), str(res.message), time.perf_counter() - t0,
-                     state["trims"], se, corr, history, list(labels), r_final)
+                     state["trims"], se, corr, history, list(labels), r_final,
+                     information=_information(res.jac, labels, names))
 
 
 def unfitted(stage: str, names: Sequence[str], start: FactorSet,

@@ -13,6 +13,7 @@ from ..calibration.diagnose import REGRESSORS
 from ..calibration.workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
 from ..factors import REGISTRY
 from . import plots
+from .identifiability import identifiability_section
 from .synthesis_section import synthesis_section
 from .text import format_summary
 
@@ -124,8 +125,9 @@ def write_steady_report(result: SteadyCalibration, out_dir: Path) -> Path:
             s["thesis (same points)"] = result.thesis[kind]
         L += _md_summary(kind, s)
     L += ["Targets (issue 3): " + "; ".join(f"{k} {v}" for k, v in TARGETS.items()), "",
-          "## Fit", "", "```", result.fit.report(), "", result.fuel_flow.report(), "```", "",
-          "## Factors", "", "| factor | value | bounds | acts on |", "|---|---:|---|---|"]
+          "## Fit", "", "```", result.fit.report(), "", result.fuel_flow.report(), "```", ""]
+    L += identifiability_section([result.fit, result.fuel_flow])
+    L += ["## Factors", "", "| factor | value | bounds | acts on |", "|---|---:|---|---|"]
     for n in result.fit.names + result.fuel_flow.names:
         f = REGISTRY[n]
         L.append(f"| {n} | {result.factors[n]:.5g} | [{f.lower:g}, {f.upper:g}] {'' if f.unit == '-' else f.unit} "
@@ -211,7 +213,8 @@ def write_trims_report(result: TrimsCalibration, out_dir: Path) -> Path:
     L += ["## Fits", "", "```"]
     for r in result.steps:
         L += [r.report(), ""]
-    L += ["```", "", "## Parity plots (baseline, stage 1, after each step)", ""]
+    L += ["```", ""] + identifiability_section(result.steps)
+    L += ["## Parity plots (baseline, stage 1, after each step)", ""]
     for k in figs:
         L += [f"![{k}](trims_{k}.png)", ""]
     if "snapshot" in result.evaluations["steady"]:
@@ -404,6 +407,7 @@ def write_dynamic_report(result: DynamicCalibration, out_dir: Path) -> Path:
     L += ["## Fits", ""]
     for r in result.steps:
         L += ["```", r.report(), "```", ""]
+    L += identifiability_section(result.steps)
     L += ["## Responses", ""]
     for rb, ra in zip(result.dynamic_before.results, result.dynamic_after.results):
         fig = plots.dynamic_response({"before": rb, "after": ra})
