@@ -88,15 +88,19 @@ class StripModel:
         self.kind = self.kind.astype(str)
         self.ctrl = self.ctrl.astype(str)
         self.reynolds = np.full(n, np.nan)
-        self._table: np.ndarray | None = None
-        # each airfoil's stored polars tabulated on the common grid: (3, n_re, n_alpha)
-        self._airfoil_tables = {}
+        # every airfoil's stored polars tabulated on the common grid, stacked: (3, all Reynolds
+        # rows, n_alpha); per airfoil the log of its Reynolds numbers and its first row
+        tables, self._airfoil_rows, first = [], {}, 0
         for name, af in self.airfoil.items():
             res = np.asarray(af.reynolds, float)
             t = np.empty((3, len(res), len(_GRID)))
             for k, r in enumerate(res):
                 t[0, k], t[1, k], t[2, k] = af.polar(float(r)).coefficients(_GRID)
-            self._airfoil_tables[name] = (np.log(res), t)
+            tables.append(t)
+            self._airfoil_rows[name] = (np.log(res), first)
+            first += len(res)
+        self._stack = np.concatenate(tables, axis=1)
+        self._re_at: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None    # rows either side, weight
         # dynamic-pressure ratio per strip (tail surfaces in the wing/fuselage wake)
         self.q_ratio = np.ones(n)
         for name, r in (dynamic_pressure_ratio or {}).items():
@@ -112,27 +116,36 @@ class StripModel:
 
     # ------------------------------------------------------------------ helpers
     def set_reynolds(self, speed_ms: float, rho: float, mu: float) -> None:
-        """Reynolds number of every strip for a speed; tabulates each strip's polar at it."""
+        """Reynolds number of every strip for a speed: each strip's polar becomes its airfoil's
+        stored polars interpolated linearly in log(Re), clamped at the ends (as Airfoil.polar),
+        evaluated where the solution asks (:meth:`_clean`)."""
         re = rho * speed_ms * self.strips.chord / mu
-        if self._table is not None and np.allclose(re, self.reynolds, rtol=1e-9):
+        if self._re_at is not None and np.allclose(re, self.reynolds, rtol=1e-9):
             return
         self.reynolds = re
         n = self.strips.n
-        tab = np.empty((3, n, len(_GRID)))
-        for name, (log_re, af_tab) in self._airfoil_tables.items():
+        lo, hi, w = np.zeros(n, int), np.zeros(n, int), np.zeros(n)
+        for name, (log_re, first) in self._airfoil_rows.items():
             idx = np.flatnonzero(self.strips.surface == name)
-            # linear in log(Re) between the stored polars, clamped at the ends (as Airfoil.polar)
-            x = np.clip(np.log(re[idx]), log_re[0], log_re[-1])
-            j = np.clip(np.searchsorted(log_re, x) - 1, 0, max(len(log_re) - 2, 0))
             if len(log_re) == 1:
-                tab[:, idx] = af_tab[:, [0] * len(idx)]
+                lo[idx] = hi[idx] = first
                 continue
-            w = ((x - log_re[j]) / (log_re[j + 1] - log_re[j]))[None, :, None]
-            tab[:, idx] = af_tab[:, j] * (1.0 - w) + af_tab[:, j + 1] * w
-        lo = np.searchsorted(_GRID, -2.0)
-        hi = np.searchsorted(_GRID, 4.0)
-        self._slope = (tab[0, :, hi] - tab[0, :, lo]) / math.radians(_GRID[hi] - _GRID[lo])
-        self._table = tab
+            x = np.clip(np.log(re[idx]), log_re[0], log_re[-1])
+            j = np.clip(np.searchsorted(log_re, x) - 1, 0, len(log_re) - 2)
+            lo[idx], hi[idx] = first + j, first + j + 1
+            w[idx] = (x - log_re[j]) / (log_re[j + 1] - log_re[j])
+        self._re_at = (lo, hi, w)
+        a, b = np.searchsorted(_GRID, -2.0), np.searchsorted(_GRID, 4.0)
+        all_rows = np.arange(n)
+        self._slope = ((self._clean(0, all_rows, np.full(n, b)) - self._clean(0, all_rows, np.full(n, a)))
+                       / math.radians(_GRID[b] - _GRID[a]))
+
+    def _clean(self, k: int, rows: np.ndarray, col: np.ndarray) -> np.ndarray:
+        """Coefficient ``k`` (cl, cd, cm) of the strips ``rows`` at grid columns ``col``, at
+        their Reynolds numbers (a strip of a single-polar airfoil: that polar, exactly)."""
+        lo, hi, w = self._re_at
+        t, wr = self._stack[k], w[rows]
+        return t[lo[rows], col] * (1.0 - wr) + t[hi[rows], col] * wr
 
     def _at(self, alpha_deg, rows):
         """The table columns either side of alpha [deg], the weight of the upper one, the rows."""
@@ -144,14 +157,12 @@ class StripModel:
     def polar(self, alpha_deg: np.ndarray, rows: np.ndarray | None = None):
         """Clean-section cl, cd, cm of the strips (all, or ``rows``) at alpha [deg]."""
         i, w, r = self._at(alpha_deg, rows)
-        t = self._table
-        return tuple(t[k, r, i] * (1.0 - w) + t[k, r, i + 1] * w for k in range(3))
+        return tuple(self._clean(k, r, i) * (1.0 - w) + self._clean(k, r, i + 1) * w for k in range(3))
 
     def polar_cl(self, alpha_deg: np.ndarray) -> np.ndarray:
         """Clean-section cl of every strip at alpha [deg] (:meth:`polar`'s cl, alone)."""
         i, w, r = self._at(alpha_deg, None)
-        t = self._table[0]
-        return t[r, i] * (1.0 - w) + t[r, i + 1] * w
+        return self._clean(0, r, i) * (1.0 - w) + self._clean(0, r, i + 1) * w
 
     def line(self, alpha: float, beta: float = 0.0) -> LiftingLine:
         """Lifting line with the wake along the free stream in the plane of symmetry.
