@@ -222,8 +222,20 @@ class Simulator:
         self.has_position_error = pm.hasNode(trim_solver.POSITION_ERROR)
         return fdm
 
+    def nodes(self, names: tuple[str, ...]) -> list:
+        """The property nodes of these names in the JSBSim loaded now (kept per load): a value
+        set or read through a node is the one ``fdm[name]`` sets or reads, without the lookup
+        of the name (a trim's residual sets 14 and reads 6, about 9 us a residual of 70)."""
+        if getattr(self, "_nodes_of", None) is not self.fdm:        # a new load: new nodes
+            self._nodes_of, self._nodes = self.fdm, {}
+        got = self._nodes.get(names)
+        if got is None:
+            pm = self.fdm.get_property_manager()
+            got = self._nodes[names] = [pm.get_node(n) for n in names]
+        return got
+
     def close(self) -> None:
-        self.fdm = None
+        self.fdm = self._nodes_of = None
         if self._box is not None:
             shutil.rmtree(self._box, ignore_errors=True)
         if getattr(self, "_stage", None):

@@ -56,6 +56,11 @@ POSITION_ERROR = "velocities/position-error-kts"   # measured - true airspeed, w
 PITCH_INDICATED = "attitude/theta-ind-deg"         # pitch as the attitude instrument shows it, where defined
 ACCELS = ("accelerations/udot-ft_sec2", "accelerations/vdot-ft_sec2", "accelerations/wdot-ft_sec2",
           "accelerations/pdot-rad_sec2", "accelerations/qdot-rad_sec2", "accelerations/rdot-rad_sec2")
+ACCEL_SCALE = np.array([G_FT, G_FT, G_FT, 1.0, 1.0, 1.0])    # the residual: accelerations in g, rotational in rad/s^2
+# what a trim's unknowns set, in this order (_Equilibrium.set_state)
+STATE = ("ic/phi-rad", "ic/theta-rad", "ic/psi-true-rad", "ic/u-fps", "ic/v-fps", "ic/w-fps",
+         "ic/p-rad_sec", "ic/q-rad_sec", "ic/r-rad_sec", "fcs/throttle-cmd-norm", TRIM_AID,
+         "fcs/elevator-cmd-norm", "fcs/aileron-cmd-norm", "fcs/rudder-cmd-norm")
 
 
 # --------------------------------------------------------------------------- atmosphere
@@ -119,7 +124,7 @@ class _Equilibrium:
         return min(max(x[6], cs.min_pitch_deg), cs.max_pitch_deg)
 
     def set_state(self, x) -> None:
-        fdm, cond, phi = self.sim.fdm, self.cond, self.phi
+        cond, phi = self.cond, self.phi
         a, b = x[0], x[1]
         V = self.V0 * x[2] if self.speed_free else self.V0
         omega = G_FT * math.tan(phi) / V if cond.turn == "coordinated" else 0.0
@@ -130,22 +135,17 @@ class _Equilibrium:
             gamma = math.asin(max(-1.0, min(1.0, cond.vs_fpm / 60.0 / V)))
             ca, cb = math.cos(a) * math.cos(b), math.sin(b) * math.sin(phi) + math.sin(a) * math.cos(b) * math.cos(phi)
             th = math.atan2(cb, ca) + math.asin(max(-1.0, min(1.0, math.sin(gamma) / math.hypot(ca, cb))))
-        fdm["ic/phi-rad"] = phi
-        fdm["ic/theta-rad"] = th
-        fdm["ic/psi-true-rad"] = 0.0
-        fdm["ic/u-fps"] = V * math.cos(a) * math.cos(b)
-        fdm["ic/v-fps"] = V * math.sin(b)
-        fdm["ic/w-fps"] = V * math.sin(a) * math.cos(b)
-        fdm["ic/p-rad_sec"] = -omega * math.sin(th)
-        fdm["ic/q-rad_sec"] = omega * math.sin(phi) * math.cos(th)
-        fdm["ic/r-rad_sec"] = omega * math.cos(phi) * math.cos(th)
-        fdm["fcs/throttle-cmd-norm"] = min(max(thr, 0.0), 1.0)
-        # beyond the throttle stops a thrust aid along the thrust line keeps the
-        # residual continuous (sandbox only): TRIM_AID_LBF per unit of throttle
-        fdm[TRIM_AID] = TRIM_AID_LBF * (min(thr, 0.0) + max(thr - 1.0, 0.0))
-        fdm["fcs/elevator-cmd-norm"] = x[3]
-        fdm["fcs/aileron-cmd-norm"] = x[4]
-        fdm["fcs/rudder-cmd-norm"] = x[5]
+        values = (phi, th, 0.0,                                                 # STATE, in its order
+                  V * math.cos(a) * math.cos(b), V * math.sin(b), V * math.sin(a) * math.cos(b),
+                  -omega * math.sin(th), omega * math.sin(phi) * math.cos(th), omega * math.cos(phi) * math.cos(th),
+                  min(max(thr, 0.0), 1.0),
+                  # beyond the throttle stops a thrust aid along the thrust line keeps the
+                  # residual continuous (sandbox only): TRIM_AID_LBF per unit of throttle
+                  TRIM_AID_LBF * (min(thr, 0.0) + max(thr - 1.0, 0.0)),
+                  x[3], x[4], x[5])
+        for node, v in zip(self.sim.nodes(STATE), values):
+            node.set_double_value(v)
+        fdm = self.sim.fdm
         if self.governed:
             fdm["propulsion/engine/blade-angle"] = self.blade(x)
         fdm.run_ic()
@@ -155,13 +155,12 @@ class _Equilibrium:
     def residual(self, x) -> np.ndarray:
         self.sim.evals += 1
         self.set_state(x)
-        fdm = self.sim.fdm
-        r = np.array([fdm[p] for p in ACCELS]) / np.array([G_FT, G_FT, G_FT, 1.0, 1.0, 1.0])
+        r = np.array([node.get_double_value() for node in self.sim.nodes(ACCELS)]) / ACCEL_SCALE
         if self.governed:
             # past a pitch stop the blade stays on the stop and the unknown measures the
             # RPM the governor cannot hold (under-speed on the fine stop, over-speed on the coarse)
             beyond = x[6] - self.blade(x)
-            r = np.append(r, (fdm["propulsion/engine/engine-rpm"] - self.rpm_set) / 100.0 - beyond / 10.0)
+            r = np.append(r, (self.sim.fdm["propulsion/engine/engine-rpm"] - self.rpm_set) / 100.0 - beyond / 10.0)
         if not np.all(np.isfinite(r)):
             return np.full(len(x), 1e3)
         # keep the solver inside the physical ranges: continue the residual linearly past them
