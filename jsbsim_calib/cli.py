@@ -69,7 +69,7 @@ from .report.markdown import (write_close_loop_report, write_dynamic_report, wri
                               write_steady_report, write_trims_report)
 from .report.progress import PlanStep, Progress, Tee
 from .report.text import evaluation_table, format_stability, format_summary
-from .report.verdicts import format_verdicts, verdicts
+from .report.verdicts import format_verdicts, lost_targets, verdicts
 from .synthetic.snapshots import synthesize, write_csv
 from .synthetic.maneuvers import check_settings, load_plan, synthesize_maneuvers
 from .calibration.variants import SLIPSTREAM, compare_variants
@@ -182,6 +182,7 @@ CALIBRATE_STAGES = {"steady": ("steady",), "trims": ("trims",), "dynamic": ("dyn
                     "all": ("steady", "trims", "dynamic")}
 FINAL_MODEL = {"steady": "stage 1 (POH climb and cruise)", "trims": "stage 2a (flight-test trims, after stage 1)",
                "dynamic": "stage 2b (dynamic tests, after stages 1 and 2a)"}
+STAGE_SHORT = {"steady": "stage 1", "trims": "stage 2a", "dynamic": "stage 2b"}
 STAGE_RUNS = {"steady": _calibrate_steady, "trims": _calibrate_trims, "dynamic": _calibrate_dynamic}
 
 
@@ -208,7 +209,7 @@ def cmd_calibrate(a) -> int:
     plan = stage_plan(root, a.aircraft, CALIBRATE_STAGES[a.stage])
     say = _progress(a, [PlanStep(fit, f"{STAGE_NAMES[stage]} {fit}", trims) for stage, fit, trims in plan])
     run = new_run()                      # one backup per run: the product as it stood before it
-    factors, summaries, final = None, {}, ""
+    factors, summaries, final, history = None, {}, "", []
     for stage in CALIBRATE_STAGES[a.stage]:
         if stage not in {s for s, _, _ in plan}:
             if a.stage == stage:
@@ -224,14 +225,16 @@ def cmd_calibrate(a) -> int:
             factors = steady_factors(factors) if stage == "trims" else factors
         factors, summaries = STAGE_RUNS[stage](a, root, say, factors, run)
         final = FINAL_MODEL[stage]
+        history.append((STAGE_SHORT[stage], verdicts(summaries)))
     where = "not written (--no-write)" if a.no_write else f"written to {root / 'aircraft' / a.aircraft}"
     print(f"\nfinal model: {final}, {where}")
     vs = verdicts(summaries)
-    print(format_verdicts(vs, f"{a.aircraft} model from {final}"))
+    print(format_verdicts(vs, f"{a.aircraft} model from {final}", history[:-1]))
     if a.json:
         _write_json(a.json, {"aircraft": a.aircraft, "stage": a.stage, "final_model": final,
                              "written": not a.no_write, "targets_met": sum(v.passed for v in vs),
-                             "verdicts": [v.to_json() for v in vs]})
+                             "verdicts": [v.to_json() for v in vs],
+                             "lost": [{**v.to_json(), "met_after": stage} for v, stage in lost_targets(history)]})
     return _verdict_exit(a, sum(not v.passed for v in vs))
 
 

@@ -13,7 +13,7 @@ import pytest
 
 from jsbsim_calib import __version__
 from jsbsim_calib.cli import EXIT_TARGETS_MISSED, _verdict_exit, build_parser, main, path_problems
-from jsbsim_calib.report.verdicts import TARGETS, Verdict, format_verdicts
+from jsbsim_calib.report.verdicts import TARGETS, Verdict, format_verdicts, lost_targets
 
 REPO = Path(__file__).resolve().parents[1]
 POH_CLIMB = REPO / "data" / "c172_poh_climb.csv"
@@ -61,6 +61,25 @@ def test_one_set_of_verdict_words_and_a_nan_fails():
     text = format_verdicts([Verdict(target, 1e9), Verdict(target, math.nan), Verdict(target, 0.0)], "test model")
     assert text.count("FAIL") == 2 and text.count("PASS") == 1 and "MISS" not in text
     assert Verdict(target, math.nan).to_json()["measured"] is None
+
+
+def test_the_guard_names_a_target_an_earlier_stage_met_and_the_chain_lost():
+    """Issue 24's guard: the console table shows each metric after every stage, and a target met
+    after an earlier stage and missed at the end (a NaN at the end included) is named with that
+    stage; one no stage met, or one the last stage does not judge, is not."""
+    climb, rpm, power, pitch = (next(t for t in TARGETS if (t.kind, t.metric, t.statistic) == k) for k in (
+        ("poh_climb", "roc_fpm", "rmse"), ("poh_cruise", "rpm", "rmse"), ("poh_cruise", "pct_power", "rmse"),
+        ("snapshot", "pitch_deg", "within_pct")))
+    s1 = [Verdict(climb, 16.8), Verdict(rpm, 9.5), Verdict(power, 1.3)]
+    s2a = [Verdict(climb, 17.5), Verdict(rpm, 11.0), Verdict(power, 1.2), Verdict(pitch, 96.0)]
+    end = [Verdict(climb, math.nan), Verdict(rpm, 10.9), Verdict(power, 0.99)]
+    lost = lost_targets([("stage 1", s1), ("stage 2a", s2a), ("stage 2b", end)])
+    assert [(v.target, stage) for v, stage in lost] == [(climb, "stage 2a"), (rpm, "stage 1")]
+    text = format_verdicts(end, "test model", [("stage 1", s1), ("stage 2a", s2a)])
+    assert "after stage 1" in text and "after stage 2a" in text and "16.80" in text and "17.50" in text
+    assert "guard: poh_climb roc_fpm RMSE <= 20 was met after stage 2a and is missed at the end" in text
+    assert "poh_cruise rpm RMSE <= 10 was met after stage 1" in text and "pct_power" not in text.split("guard:")[1]
+    assert lost_targets([("stage 1", s1)]) == [] and lost_targets([]) == []
 
 
 def test_evaluate_takes_a_folder_of_logs():

@@ -122,6 +122,8 @@ def test_main_job_rewrites_the_committed_c172_byte_for_byte(tmp_path):
     assert r.returncode == (3 if missed else 0), r.stderr[-3000:]
     assert d["aircraft"] == "c172" and d["written"] is True and d["targets_met"] == len(d["verdicts"]) - len(missed)
     assert all(v["verdict"] in ("PASS", "FAIL") for v in d["verdicts"]) and "MISS" not in r.stdout
+    # the guard: no target an earlier stage met is missed at the end (issue 24)
+    assert d["lost"] == [] and "guard: every target an earlier stage met is still met" in r.stdout
     fresh = json.loads(AircraftPaths(root, "c172").calibration.read_text())
     record = _committed("c172")
     changed = [str(p.relative_to(root)) for p in root.rglob("*") if p.is_file()

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Mapping, Sequence
 
 from ..data.schemas import METRICS
 
@@ -81,17 +81,48 @@ def verdicts(summaries: Mapping[str, Mapping[str, Mapping]], targets=TARGETS) ->
     return out
 
 
-def format_verdicts(vs: list[Verdict], model: str) -> str:
-    """The verdict table the console shows at the end of a calibration."""
+def _measured(v: Verdict | None) -> str:
+    if v is None:
+        return ""
+    if v.measured is None or not math.isfinite(v.measured):
+        return "n/a"
+    return f"{v.measured:.1f} %" if v.target.statistic in ("within_pct", "mape") else f"{v.measured:.2f}"
+
+
+def lost_targets(history: Sequence[tuple[str, list[Verdict]]]) -> list[tuple[Verdict, str]]:
+    """The chain's guard: the targets an earlier stage met that the last stage misses, each with
+    the last earlier stage that met it (``history``: (stage, its verdicts), in the chain's order)."""
+    if not history:
+        return []
+    out = []
+    for v in history[-1][1]:
+        if v.passed:
+            continue
+        met = [stage for stage, vs in history[:-1] for w in vs if w.target == v.target and w.passed]
+        if met:
+            out.append((v, met[-1]))
+    return out
+
+
+def format_verdicts(vs: list[Verdict], model: str, earlier: Sequence[tuple[str, list[Verdict]]] = ()) -> str:
+    """The verdict table the console shows at the end of a calibration; ``earlier``: the
+    verdicts after each earlier stage of the chain, shown beside the final ones, and the guard's
+    line (a target an earlier stage met and the chain lost)."""
+    stages = [stage for stage, _ in earlier]
     lines = [f"Verdicts of the {model}:",
-             f"{'data':<11} {'metric':<17} {'tolerance':>14} {'target':>15} {'measured':>9}  verdict"]
+             f"{'data':<11} {'metric':<17} {'tolerance':>14} {'target':>15}"
+             + "".join(f" {'after ' + s:>15}" for s in stages) + f" {'measured':>9}  verdict"]
     for v in vs:
         m = METRICS[v.target.metric]
         tol = f"+-{m.tolerance * 100:g} %" if m.relative else f"+-{m.tolerance:g} {m.unit}"
-        meas = "n/a" if v.measured is None or not math.isfinite(v.measured) else (
-            f"{v.measured:.1f} %" if v.target.statistic in ("within_pct", "mape") else f"{v.measured:.2f}")
-        lines.append(f"{v.target.kind:<11} {v.target.metric:<17} {tol:>14} {v.target.describe():>15} {meas:>9}  "
-                     f"{v.word}")
+        before = "".join(f" {_measured(next((w for w in ws if w.target == v.target), None)):>15}" for _, ws in earlier)
+        lines.append(f"{v.target.kind:<11} {v.target.metric:<17} {tol:>14} {v.target.describe():>15}{before} "
+                     f"{_measured(v):>9}  {v.word}")
     n = sum(v.passed for v in vs)
     lines.append(f"{n} of {len(vs)} targets met")
+    if earlier:
+        lost = lost_targets([*earlier, ("end", vs)])
+        lines.append("guard: " + ("; ".join(f"{v.target.kind} {v.target.metric} {v.target.describe()} was met after "
+                                            f"{stage} and is missed at the end" for v, stage in lost)
+                                  if lost else "every target an earlier stage met is still met"))
     return "\n".join(lines)
