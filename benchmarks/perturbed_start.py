@@ -67,7 +67,7 @@ def main() -> None:
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", QuirkWarning)
-        steady = run_steady(ROOT, "c172", start=start)
+        steady = run_steady(ROOT, "c172", start=start, bands=False)
         trims = run_trims(ROOT, "c172", start=steady_factors(steady.factors))
         final = run_dynamic(ROOT, "c172", start=trims.factors).factors
     wall = time.perf_counter() - t0

@@ -54,3 +54,45 @@ def test_a_nan_standard_error_is_never_determined(fuel_and_pitch_damping):
     assert bad.determination("K_FF") == "not identified"
     row = next(line for line in identifiability_section([bad]) if "| K_FF |" in line)
     assert "nan" not in row.lower() and row.endswith("| not identified |")
+
+
+# --------------------------------------------------------------------------- prediction bands (item 1)
+def test_a_band_is_the_factors_interval_carried_through_the_model(repo, fuel_and_pitch_damping):
+    """Each fuel-flow band must be Z95 * SE(K_FF) * |d gph / d K_FF| (the sensitivity taken here
+    with a step four times the bands' own, in physical units); neither factor moves the RPM of a
+    steady point (its band: zero, to the trims' precision)."""
+    from jsbsim_calib.calibration.bands import prediction_bands
+    from jsbsim_calib.calibration.fit import Z95
+    res = fuel_and_pitch_damping
+    cruise = load_dataset(repo / "data" / "c172_poh_cruise.csv")
+    with Simulator(repo, "c172") as sim:
+        bands = prediction_bands(sim, res.final, [res], {"poh_cruise": cruise})
+        conds = PointSet.from_dataset(cruise, sim).conditions
+        f = res.final.factor("K_FF")
+        d = 4 * 0.002 * 0.5 * (f.upper - f.lower)
+        gph = []
+        for k_ff in (res.final["K_FF"], res.final["K_FF"] + d):
+            sim.set_factors(res.final.with_vector(["K_FF"], [k_ff], normalized=False))
+            gph.append(np.array([sim.trim_level(c).gph for c in conds]))
+    expected = Z95 * res.stderr["K_FF"] * np.abs(gph[1] - gph[0]) / d
+    band = bands.rows["poh_cruise"]["gph"]
+    assert np.all(np.isfinite(band)) and band == pytest.approx(expected, rel=1e-3)
+    assert np.all(bands.rows["poh_cruise"]["rpm"] < 0.01) and bands.rmse["poh_cruise"]["rpm"] < 0.01   # rpm
+    assert math.isfinite(bands.rmse["poh_cruise"]["gph"]) and bands.rmse["poh_cruise"]["gph"] > 0
+
+
+def test_a_verdict_says_whether_its_band_crosses_the_target_and_a_nan_has_no_band():
+    from jsbsim_calib.calibration.bands import Bands
+    b = Bands({}, {"poh_climb": {"roc_fpm": 3.0}, "poh_cruise": {"rpm": float("nan")}})
+    assert b.confidence("poh_climb", "roc_fpm", 16.0, 20.0) == "band inside"     # 13-19: a sure PASS
+    assert b.confidence("poh_climb", "roc_fpm", 18.5, 20.0) == "band across"     # 15.5-21.5
+    assert b.confidence("poh_climb", "roc_fpm", 24.0, 20.0) == "band inside"     # a sure FAIL
+    assert b.confidence("poh_climb", "roc_fpm", float("nan"), 20.0) == "no band"
+    assert b.confidence("poh_cruise", "rpm", 9.0, 10.0) == "no band"
+
+
+def test_no_band_without_a_covariance(repo, fuel_and_pitch_damping):
+    from jsbsim_calib.calibration.bands import prediction_bands
+    blind = FitResult(**{**fuel_and_pitch_damping.__dict__, "covariance": None})
+    with Simulator(repo, "c172") as sim:
+        assert prediction_bands(sim, blind.final, [blind], {}) is None

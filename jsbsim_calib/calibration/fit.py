@@ -74,6 +74,7 @@ class FitResult:
     residuals: np.ndarray | None = None
     notes: list[str] = field(default_factory=list)
     information: dict[str, list[tuple[str, float]]] = field(default_factory=dict)
+    covariance: np.ndarray | None = None   # of the normalized factors (names' order), None where rank-deficient
 
     def at_boundary(self, name: str, tol: float = 1e-3) -> str:
         f = self.final.factor(name)
@@ -148,18 +149,19 @@ class FitResult:
         }
 
 
-def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: FactorSet) -> tuple[dict, dict]:
-    """Standard errors of the factors from the Jacobian at the solution, with the
-    covariance scaled by the reduced chi-square of the residuals (as lmfit does)."""
+def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: FactorSet) -> tuple[dict, dict, np.ndarray | None]:
+    """Standard errors and correlations of the factors from the Jacobian at the solution, with
+    the covariance (of the normalized factors; None where rank-deficient) scaled by the reduced
+    chi-square of the residuals (as lmfit does)."""
     out: dict[str, float | None] = {n: None for n in names}
     corr = {}
     jtj = numerics.gram(jac)
     try:
         cov = numerics.inverse(jtj)
     except numerics.SingularMatrixError:
-        return out, corr
+        return out, corr, None
     if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) <= 0) or np.max(np.abs(cov)) > 1e12:
-        return out, corr                        # rank-deficient: no standard errors
+        return out, corr, None                  # rank-deficient: no standard errors
     dof = max(1, len(residuals) - len(names))
     cov = cov * numerics.sum_sq(residuals) / dof
     d = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -170,7 +172,7 @@ def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: Fac
         for j in range(i + 1, len(names)):
             if d[i] > 0 and d[j] > 0:
                 corr[(names[i], names[j])] = float(cov[i, j] / (d[i] * d[j]))
-    return out, corr
+    return out, corr, cov
 
 
 def residual_group(label: str) -> str:
@@ -352,11 +354,11 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
                 break
     final = start.with_vector(names, x)
     r_final = counted(problem.evaluate(x, state["warm"], 1.0)).residuals    # leaves the simulator at the final factors
-    se, corr = _stderr(res.jac, names, r_final, final)
+    se, corr, cov = _stderr(res.jac, names, r_final, final)
     return FitResult(stage, names, start, final, cost0, 0.5 * numerics.sum_sq(r_final), nfev,
                      state["njev"], int(res.status), str(res.message), time.perf_counter() - t0,
                      state["trims"], se, corr, history, list(labels), r_final,
-                     information=_information(res.jac, labels, names))
+                     information=_information(res.jac, labels, names), covariance=cov)
 
 
 def unfitted(stage: str, names: Sequence[str], start: FactorSet,

@@ -125,7 +125,7 @@ def run_variant(root: Path | str, name: str, variant: Variant, *, stages: str = 
     say = progress or (lambda s: None)
     start = FactorSet(dict(variant.switches))
     kw = {"progress": say, "executor": executor, "max_nfev": max_nfev}
-    steady = run_steady(root, name, start=start, **kw)
+    steady = run_steady(root, name, start=start, bands=False, **kw)
     factors, poh, trims, dynamic = steady.factors, steady.calibrated, {}, {}
     geom = load_aircraft_geometry(Path(root), name)
     if stages == "all" and "flight_test" in geom.data_files:

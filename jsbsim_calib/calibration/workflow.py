@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from .bands import Bands, prediction_bands
 from .closeloop import CloseLoopResult, close_loop
 from .dynamic import DYNAMIC_STEPS, DynamicStep, dynamic_stage
 from .fit import MAX_NFEV, FitResult
@@ -56,6 +57,7 @@ class SteadyCalibration:
     cruise_points: list[int]
     aero_curves: dict[str, AeroCurves]           # baseline, calibrated
     propeller_tables: dict[str, PropellerTables]  # baseline, calibrated (BEM breakpoints)
+    bands: Bands | None = None                    # the calibrated model's 95 % prediction bands (None: no covariance)
 
     def summary(self) -> dict:
         """The stage's record (calibration.json), JSON-safe."""
@@ -88,10 +90,11 @@ def model_curves(root: Path, name: str, factors: FactorSet) -> tuple[dict[str, A
 
 def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
                progress: Callable[[str], None] | None = None, executor: Executor = SERIAL,
-               max_nfev: int | None = MAX_NFEV) -> SteadyCalibration:
+               max_nfev: int | None = MAX_NFEV, bands: bool = True) -> SteadyCalibration:
     """Stage 1 on the aircraft's POH data, with baseline and calibrated evaluations
     (``executor``: where the fits' independent evaluations run; the same results anywhere).
-    ``start``: default neutral, with the model switches the aircraft file sets (the slipstream)."""
+    ``start``: default neutral, with the model switches the aircraft file sets (the slipstream).
+    ``bands``: also the calibrated model's prediction bands (one evaluation per factor)."""
     root = Path(root)
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
@@ -107,11 +110,14 @@ def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
         sim.set_factors(ff.final)
         say(f"calibrated: trimming {len(climb) + len(cruise)} POH points")
         calibrated = {k: evaluate_dataset(sim, ds) for k, ds in data.items()}
+        if bands:
+            say("prediction bands: one evaluation of the POH points per fitted factor")
+        drawn = prediction_bands(sim, ff.final, (fit, ff), data) if bands else None
         trims = sim.trims
     curves, tables = model_curves(root, name, ff.final)
     return SteadyCalibration(name, fit, ff, baseline, calibrated,
                              {k: thesis_summary(ds) for k, ds in data.items()}, ff.final,
-                             time.perf_counter() - t0, trims, ci, ki, curves, tables)
+                             time.perf_counter() - t0, trims, ci, ki, curves, tables, drawn)
 
 
 # --------------------------------------------------------------------------- where a stage starts, what it runs

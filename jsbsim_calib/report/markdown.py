@@ -11,11 +11,13 @@ import pandas as pd
 
 from ..calibration.diagnose import REGRESSORS
 from ..calibration.workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
+from ..data.schemas import METRICS
 from ..factors import REGISTRY
 from . import plots
 from .identifiability import identifiability_section
 from .synthesis_section import synthesis_section
 from .text import format_summary
+from .verdicts import TARGETS as TARGET_LIST
 
 JSBSIM_VERSION = version("jsbsim")
 
@@ -87,6 +89,41 @@ def write_evaluation_report(ev, out_dir: Path) -> Path:
     return path
 
 
+def _crosses(error: float, band: float, tolerance: float) -> bool:
+    """Whether an error's band reaches across its tolerance (in on one side, out on the other)."""
+    return (error - band <= tolerance) != (error + band <= tolerance)
+
+
+def bands_section(result: SteadyCalibration) -> list[str]:
+    """The calibrated model's prediction bands against the RMSE targets, and the points whose
+    band crosses their tolerance."""
+    if result.bands is None:
+        return ["## Prediction bands", "", "None: a fit's covariance is rank-deficient.", ""]
+    L = ["## Prediction bands", "",
+         "The factors' covariance (from the fits, as in the table above) carried to every prediction by "
+         "linearization: each RMSE with its 95 % band, and the share of points whose 95 % band reaches past "
+         "their tolerance. A verdict whose band stays on its side of the target holds with the band inside; "
+         "one whose band crosses the target could go either way on these data. The parity figures draw each "
+         "point's band.", "",
+         "| data | metric | RMSE | 95 % band | target | verdict | confidence | points whose band crosses the tolerance |",
+         "|---|---|---:|---:|---|---|---|---:|"]
+    for t in TARGET_LIST:
+        if t.statistic != "rmse" or t.kind not in result.calibrated:
+            continue
+        ev = result.calibrated[t.kind]
+        rmse = ev.summary()[t.metric].rmse
+        band = result.bands.rmse[t.kind][t.metric]
+        rows = result.bands.rows[t.kind][t.metric]
+        m = METRICS[t.metric]
+        across = [_crosses(abs(p.error[t.metric]), b, m.tol_for(p.inputs[t.metric])) for p, b in zip(ev.points, rows)
+                  if math.isfinite(p.error.get(t.metric, math.nan)) and math.isfinite(b)]
+        word = "PASS" if t.met_by(rmse) else "FAIL"
+        L.append(f"| {t.kind} | {t.metric} | {_md_cell(rmse, '.2f')} | {_md_cell(band, '.2f')} | {t.describe()} "
+                 f"| {word} | {result.bands.confidence(t.kind, t.metric, rmse, t.limit)} "
+                 f"| {sum(across)} of {len(across)} |")
+    return L + [""]
+
+
 def write_steady_report(result: SteadyCalibration, out_dir: Path) -> Path:
     """reports/<aircraft>/steady.md with figures; returns the markdown path."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -96,9 +133,10 @@ def write_steady_report(result: SteadyCalibration, out_dir: Path) -> Path:
     figs["climb"] = plots.climb_vs_altitude(both("poh_climb"))
     for m in ("rpm", "pct_power", "gph"):
         figs[f"cruise_{m}"] = plots.cruise_vs_speed(both("poh_cruise"), m)
-    figs["parity_roc"] = plots.parity(both("poh_climb"), "roc_fpm")
+    band = lambda k, m: {"calibrated": result.bands.rows[k][m]} if result.bands else None
+    figs["parity_roc"] = plots.parity(both("poh_climb"), "roc_fpm", bands=band("poh_climb", "roc_fpm"))
     for m in ("rpm", "pct_power", "gph"):
-        figs[f"parity_{m}"] = plots.parity(both("poh_cruise"), m)
+        figs[f"parity_{m}"] = plots.parity(both("poh_cruise"), m, bands=band("poh_cruise", m))
     figs["aero"] = plots.aero_polars(result.aero_curves)
     figs["propeller"] = plots.propeller_curves(result.propeller_tables)
     for k, fig in figs.items():
@@ -127,6 +165,7 @@ def write_steady_report(result: SteadyCalibration, out_dir: Path) -> Path:
     L += ["Targets (issue 3): " + "; ".join(f"{k} {v}" for k, v in TARGETS.items()), "",
           "## Fit", "", "```", result.fit.report(), "", result.fuel_flow.report(), "```", ""]
     L += identifiability_section([result.fit, result.fuel_flow])
+    L += bands_section(result)
     L += ["## Factors", "", "| factor | value | bounds | acts on |", "|---|---:|---|---|"]
     for n in result.fit.names + result.fuel_flow.names:
         f = REGISTRY[n]

@@ -100,8 +100,9 @@ def cruise_vs_speed(evals: Mapping[str, object], metric: str, ax=None) -> Figure
     return fig
 
 
-def parity(evals: Mapping[str, object], metric: str, ax=None) -> Figure:
-    """Model vs data for one metric, with the tolerance band."""
+def parity(evals: Mapping[str, object], metric: str, ax=None, bands: Mapping[str, np.ndarray] | None = None) -> Figure:
+    """Model vs data for one metric, with the tolerance band; ``bands``: per label, the 95 %
+    prediction band of each point (error bars)."""
     fig, ax = _ax(ax, (4.6, 4.4))
     lo, hi = np.inf, -np.inf
     for label, ev in evals.items():
@@ -110,6 +111,11 @@ def parity(evals: Mapping[str, object], metric: str, ax=None) -> Figure:
         ok = np.isfinite(x) & np.isfinite(y)
         st = _style(label)
         ax.plot(x[ok], y[ok], "o", ms=4, color=st.get("color"), alpha=0.8, label=label)
+        band = (bands or {}).get(label)
+        if band is not None and (ok & np.isfinite(band)).any():
+            b = ok & np.isfinite(band)
+            ax.errorbar(x[b], y[b], yerr=band[b], fmt="none", ecolor=st.get("color"), elinewidth=0.8, capsize=2,
+                         alpha=0.7, label=f"{label}: 95 % prediction band")
         if ok.any():
             lo, hi = min(lo, x[ok].min(), y[ok].min()), max(hi, x[ok].max(), y[ok].max())
     if np.isfinite(lo):

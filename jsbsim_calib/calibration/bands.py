@@ -1,0 +1,111 @@
+"""Prediction bands: the factors' covariance from the fits, carried to every prediction.
+
+Linearization: the sensitivities G of the model's predictions to the fitted factors
+(normalized, forward differences from the calibrated point) and the covariance C of those
+factors give each prediction the variance ``g C g^T``; the band is +/- ``Z95`` standard
+deviations. The fits are taken as independent (their covariances form the blocks of C). A
+metric's RMSE gets its band the same way, through its gradient ``sum_j e_j g_j / (n RMSE)``.
+A verdict then carries its confidence: a met RMSE target whose band stays below the limit is
+met *with the band inside*; one whose band crosses the limit is met *with the band across*.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from ..core import numerics
+from ..data.schemas import Dataset
+from ..evaluation.evaluate import evaluate_dataset
+from ..factors import FactorSet
+from ..jsbsim.simulator import Simulator
+from .fit import Z95, FitResult
+
+STEP = 0.002          # forward-difference step in normalized factor units (the fits' polish step)
+
+
+@dataclass
+class Bands:
+    """95 % half-widths of the model's predictions (``rows[kind][metric]``, one per data row,
+    NaN where the model did not trim) and of each metric's RMSE (``rmse[kind][metric]``)."""
+
+    rows: dict[str, dict[str, np.ndarray]]
+    rmse: dict[str, dict[str, float]]
+
+    def confidence(self, kind: str, metric: str, rmse: float | None, limit: float) -> str:
+        """How an RMSE verdict stands against its band: inside, across the limit, or unknown."""
+        band = self.rmse.get(kind, {}).get(metric, math.nan)
+        if rmse is None or not (math.isfinite(rmse) and math.isfinite(band)):
+            return "no band"
+        return "band inside" if (rmse + band <= limit) == (rmse - band <= limit) else "band across"
+
+
+def covariance(fits: Sequence[FitResult]) -> tuple[list[str], np.ndarray] | None:
+    """The fits' factors and their block-diagonal covariance (normalized units); None when a
+    fit has no covariance (rank-deficient: no band can be drawn)."""
+    names: list[str] = []
+    blocks = []
+    for f in fits:
+        if f.covariance is None:
+            return None
+        names += f.names
+        blocks.append(f.covariance)
+    C = np.zeros((len(names), len(names)))
+    at = 0
+    for b in blocks:
+        C[at:at + len(b), at:at + len(b)] = b
+        at += len(b)
+    return names, C
+
+
+def _predictions(sim: Simulator, factors: FactorSet, data: Mapping[str, Dataset]) -> dict[str, dict[str, np.ndarray]]:
+    sim.set_factors(factors)
+    out = {}
+    for kind, ds in data.items():
+        ev = evaluate_dataset(sim, ds)
+        out[kind] = {m: np.array([p.model.get(m, np.nan) for p in ev.points]) for m in ds.metrics}
+    return out
+
+
+def _quadratic(g: np.ndarray, C: np.ndarray) -> float:
+    return numerics.dot(g, numerics.matvec(C, g))
+
+
+def prediction_bands(sim: Simulator, factors: FactorSet, fits: Sequence[FitResult],
+                     data: Mapping[str, Dataset]) -> Bands | None:
+    """The bands of the model at ``factors`` on ``data`` from the covariance of ``fits``
+    (None when a fit has no covariance). Costs one evaluation of the data per factor."""
+    cov = covariance(fits)
+    if cov is None:
+        return None
+    names, C = cov
+    base = _predictions(sim, factors, data)
+    x0 = factors.vector(names)
+    sens = []                                   # per factor: predictions' change per unit step
+    for i in range(len(names)):
+        h = STEP if x0[i] + STEP <= 1.0 else -STEP
+        x = np.array(x0, float)
+        x[i] += h
+        moved = _predictions(sim, factors.with_vector(names, x), data)
+        sens.append({k: {m: (v - base[k][m]) / h for m, v in ms.items()} for k, ms in moved.items()})
+    sim.set_factors(factors)
+    rows: dict[str, dict[str, np.ndarray]] = {}
+    rmse: dict[str, dict[str, float]] = {}
+    for kind, ds in data.items():
+        rows[kind], rmse[kind] = {}, {}
+        for m in ds.metrics:
+            G = np.column_stack([s[kind][m] for s in sens])            # rows x factors
+            pred = base[kind][m]
+            rows[kind][m] = np.array([Z95 * math.sqrt(max(_quadratic(g, C), 0.0)) if np.all(np.isfinite(g))
+                                      else math.nan for g in G])
+            err = pred - ds.frame[m].to_numpy(float)
+            ok = np.isfinite(err) & np.all(np.isfinite(G), axis=1)
+            r = math.sqrt(numerics.sum_sq(err[ok]) / ok.sum()) if ok.any() else math.nan
+            if not (ok.any() and r > 0):
+                rmse[kind][m] = math.nan
+                continue
+            grad = numerics.matvec(G[ok].T, err[ok]) / (ok.sum() * r)
+            rmse[kind][m] = Z95 * math.sqrt(max(_quadratic(grad, C), 0.0))
+    return Bands(rows, rmse)
