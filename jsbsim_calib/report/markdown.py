@@ -98,7 +98,7 @@ def bands_section(result: SteadyCalibration) -> list[str]:
     """The calibrated model's prediction bands against the RMSE targets, and the points whose
     band crosses their tolerance."""
     if result.bands is None:
-        return ["## Prediction bands", "", "None: a fit's covariance is rank-deficient.", ""]
+        return ["## Prediction bands", "", "None: not computed (run_steady(bands=False)), or a fit's covariance is rank-deficient.", ""]
     L = ["## Prediction bands", "",
          "The factors' covariance (from the fits, as in the table above) carried to every prediction by "
          "linearization: each RMSE with its 95 % band, and the share of points whose 95 % band reaches past "
