@@ -68,7 +68,7 @@ def main() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", QuirkWarning)
         steady = run_steady(ROOT, "c172", start=start, bands=False)
-        trims = run_trims(ROOT, "c172", start=steady_factors(steady.factors))
+        trims = run_trims(ROOT, "c172", start=steady_factors(steady.factors), bands=False)
         final = run_dynamic(ROOT, "c172", start=trims.factors).factors
     wall = time.perf_counter() - t0
     record = json.loads(AircraftPaths(ROOT, "c172").calibration.read_text())

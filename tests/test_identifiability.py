@@ -96,3 +96,27 @@ def test_no_band_without_a_covariance(repo, fuel_and_pitch_damping):
     blind = FitResult(**{**fuel_and_pitch_damping.__dict__, "covariance": None})
     with Simulator(repo, "c172") as sim:
         assert prediction_bands(sim, blind.final, [blind], {}) is None
+
+
+def test_each_factor_takes_its_covariance_from_the_last_fit_that_set_it():
+    """A chain's steps refit some factors: the band uses the last fit's block for each (the
+    marginal covariance of a later fit replaces the earlier one); a step that fitted nothing
+    sets nothing."""
+    from types import SimpleNamespace
+
+    from jsbsim_calib.calibration.bands import covariance
+    first = SimpleNamespace(names=["a", "b"], covariance=np.array([[1.0, 0.5], [0.5, 2.0]]), njev=3)
+    last = SimpleNamespace(names=["b", "c"], covariance=np.array([[3.0, 0.1], [0.1, 4.0]]), njev=2)
+    idle = SimpleNamespace(names=["c"], covariance=None, njev=0)
+    names, C = covariance([first, last, idle])
+    assert names == ["b", "c", "a"]
+    assert np.array_equal(C, np.array([[3.0, 0.1, 0.0], [0.1, 4.0, 0.0], [0.0, 0.0, 1.0]]))
+    assert covariance([SimpleNamespace(names=["a"], covariance=None, njev=5)]) is None
+
+
+def test_a_share_within_tolerance_gets_the_range_its_bands_allow():
+    from jsbsim_calib.calibration.bands import Bands
+    b = Bands({"snapshot": {"rudder_deg": np.array([0.2, 0.2, 0.6, 0.1])}}, {})
+    err, tol = np.array([0.5, -0.9, 1.5, np.nan]), np.ones(4)
+    assert b.within_range("snapshot", "rudder_deg", err, tol) == (25.0, 75.0)   # a NaN: outside at both ends
+    assert all(math.isnan(v) for v in b.within_range("snapshot", "pitch_deg", err, tol))

@@ -41,17 +41,35 @@ class Bands:
             return "no band"
         return "band inside" if (rmse + band <= limit) == (rmse - band <= limit) else "band across"
 
+    def within_range(self, kind: str, metric: str, errors: np.ndarray, tolerances: np.ndarray) -> tuple[float, float]:
+        """The share [%] of the rows within their tolerance at the two ends of the bands (each
+        error moved by its band away from, then toward zero); a row with no error or no band
+        counts as outside at both ends, as the verdicts count a point the model cannot trim."""
+        band = self.rows.get(kind, {}).get(metric)
+        if band is None or not len(errors):
+            return math.nan, math.nan
+        e, ok = np.abs(errors), np.isfinite(errors) & np.isfinite(band)
+        low = np.sum(ok & (e + np.where(ok, band, 0.0) <= tolerances + 1e-9))
+        high = np.sum(ok & (e - np.where(ok, band, 0.0) <= tolerances + 1e-9))
+        return 100.0 * low / len(e), 100.0 * high / len(e)
+
 
 def covariance(fits: Sequence[FitResult]) -> tuple[list[str], np.ndarray] | None:
-    """The fits' factors and their block-diagonal covariance (normalized units); None when a
-    fit has no covariance (rank-deficient: no band can be drawn)."""
+    """The factors of the fits and their covariance (normalized units), each factor's from the
+    last fit that set it (its block of that fit's covariance), the fits taken as independent;
+    None when such a fit has no covariance (rank-deficient: no band can be drawn)."""
     names: list[str] = []
     blocks = []
-    for f in fits:
+    for f in reversed(fits):
+        if f.njev == 0:                         # a step that fitted nothing sets nothing
+            continue
+        new = [i for i, n in enumerate(f.names) if n not in names]
+        if not new:
+            continue
         if f.covariance is None:
             return None
-        names += f.names
-        blocks.append(f.covariance)
+        names += [f.names[i] for i in new]
+        blocks.append(f.covariance[np.ix_(new, new)])
     C = np.zeros((len(names), len(names)))
     at = 0
     for b in blocks:

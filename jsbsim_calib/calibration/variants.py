@@ -129,7 +129,7 @@ def run_variant(root: Path | str, name: str, variant: Variant, *, stages: str = 
     factors, poh, trims, dynamic = steady.factors, steady.calibrated, {}, {}
     geom = load_aircraft_geometry(Path(root), name)
     if stages == "all" and "flight_test" in geom.data_files:
-        tr = run_trims(root, name, start=steady_factors(factors), steps=_steps_with(variant.fitted), **kw)
+        tr = run_trims(root, name, start=steady_factors(factors), steps=_steps_with(variant.fitted), bands=False, **kw)
         factors, poh = tr.factors, tr.poh_after
         if "flight_test_results" in geom.data_files:
             dyn = run_dynamic(root, name, start=factors, **kw)

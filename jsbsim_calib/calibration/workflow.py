@@ -110,10 +110,10 @@ def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
         sim.set_factors(ff.final)
         say(f"calibrated: trimming {len(climb) + len(cruise)} POH points")
         calibrated = {k: evaluate_dataset(sim, ds) for k, ds in data.items()}
+        trims = sim.trims                       # the calibration's trims, not the bands'
         if bands:
             say("prediction bands: one evaluation of the POH points per fitted factor")
         drawn = prediction_bands(sim, ff.final, (fit, ff), data) if bands else None
-        trims = sim.trims
     curves, tables = model_curves(root, name, ff.final)
     return SteadyCalibration(name, fit, ff, baseline, calibrated,
                              {k: thesis_summary(ds) for k, ds in data.items()}, ff.final,
@@ -202,6 +202,7 @@ class TrimsCalibration:
     skipped: list[str]
     wall_time_s: float
     trims: int
+    bands: Bands | None = None                    # the final model's 95 % prediction bands (None: not computed)
 
     @property
     def data(self) -> dict[str, Dataset]:
@@ -223,12 +224,13 @@ class TrimsCalibration:
 
 def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps: tuple[TrimStep, ...] = TRIM_STEPS,
               start: FactorSet | None = None, progress: Callable[[str], None] | None = None,
-              executor: Executor = SERIAL, max_nfev: int | None = MAX_NFEV) -> TrimsCalibration:
+              executor: Executor = SERIAL, max_nfev: int | None = MAX_NFEV, bands: bool = True) -> TrimsCalibration:
     """Stage 2a on the aircraft's flight-test trims, from its stage-1 factors.
 
     ``skip``: names of steps left out (e.g. ``("pfactor",)``); ``start``: factors to start
     from (default :func:`recorded_start`: stage 1's factors as it recorded them, later ones
-    neutral)."""
+    neutral); ``bands``: also the final model's prediction bands (one evaluation of the
+    flight-test and POH points per factor the steps set)."""
     root = Path(root)
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
@@ -264,10 +266,13 @@ def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps:
         sim.set_factors(final)
         say(f"stage 2a model: trimming {sum(len(d) for d in poh.values())} POH points")
         poh_after = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
-        trims = sim.trims
+        trims = sim.trims                       # the calibration's trims, not the bands'
+        if bands and results:
+            say("prediction bands: one evaluation of the flight-test and POH points per factor")
+        drawn = prediction_bands(sim, final, results, {**ft, **poh}) if bands and results else None
     return TrimsCalibration(name, results, evaluations, poh_before, poh_after,
                             {k: thesis_summary(ds) for k, ds in ft.items()}, final, list(skip),
-                            time.perf_counter() - t0, trims)
+                            time.perf_counter() - t0, trims, drawn)
 
 
 # --------------------------------------------------------------------------- stage 2b
@@ -355,7 +360,7 @@ def run_close_loop(root: Path | str, name: str, data: Path | str, *, skip_steps:
             say(f"stage 2a without {', '.join(skip_steps)}")
             with warnings.catch_warnings():       # its rows left out are reported when the loop's data load
                 warnings.simplefilter("ignore", QuirkWarning)
-                start = run_trims(root, name, skip=tuple(skip_steps), progress=say).factors
+                start = run_trims(root, name, skip=tuple(skip_steps), progress=say, bands=False).factors
             sim.set_factors(start)
         ds = load_data_for(sim, data)
         res = close_loop(sim, ds, progress=say)

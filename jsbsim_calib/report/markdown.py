@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from ..calibration.diagnose import REGRESSORS
+from ..calibration.bands import Bands
 from ..calibration.workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
 from ..data.schemas import METRICS
 from ..factors import REGISTRY
@@ -94,33 +95,45 @@ def _crosses(error: float, band: float, tolerance: float) -> bool:
     return (error - band <= tolerance) != (error + band <= tolerance)
 
 
-def bands_section(result: SteadyCalibration) -> list[str]:
-    """The calibrated model's prediction bands against the RMSE targets, and the points whose
-    band crosses their tolerance."""
-    if result.bands is None:
-        return ["## Prediction bands", "", "None: not computed (run_steady(bands=False)), or a fit's covariance is rank-deficient.", ""]
+def _band_row(bands: Bands, t, ev) -> str:
+    """One target's line: the statistic with its band, the verdict and its confidence."""
+    m = METRICS[t.metric]
+    pts = [p for p in ev.points if t.metric in p.inputs and np.isfinite(p.inputs[t.metric])]
+    err = np.array([p.error.get(t.metric, np.nan) for p in pts], float)
+    tol = np.array([m.tol_for(p.inputs[t.metric]) for p in pts], float)
+    band = bands.rows[t.kind][t.metric]
+    band = np.array([band[p.index] for p in pts], float)
+    ok = np.isfinite(err) & np.isfinite(band)
+    across = sum(_crosses(e, b, tl) for e, b, tl in zip(np.abs(err[ok]), band[ok], tol[ok]))
+    value = getattr(ev.summary()[t.metric], t.statistic)
+    if t.statistic == "rmse":
+        shown = f"{_md_cell(value, '.2f')} +/- {_md_cell(bands.rmse[t.kind][t.metric], '.2f')}"
+        confidence = bands.confidence(t.kind, t.metric, value, t.limit)
+    else:
+        lo, hi = bands.within_range(t.kind, t.metric, err, tol)
+        shown = f"{_md_cell(value, '.1f')} % ({_md_cell(lo, '.0f')}-{_md_cell(hi, '.0f')} %)"
+        confidence = "band inside" if t.met_by(lo) == t.met_by(hi) else "band across"
+    word = "PASS" if t.met_by(value) else "FAIL"
+    return f"| {t.kind} | {t.metric} | {shown} | {t.describe()} | {word} | {confidence} | {across} of {len(pts)} |"
+
+
+def bands_section(bands: Bands | None, evaluations: dict) -> list[str]:
+    """The model's prediction bands against the targets its evaluations (``{kind: Evaluation}``)
+    are judged by, and the points whose band crosses their tolerance."""
+    if bands is None:
+        return ["## Prediction bands", "", "None: not computed (bands=False), or a fit's covariance is rank-deficient.", ""]
     L = ["## Prediction bands", "",
-         "The factors' covariance (from the fits, as in the table above) carried to every prediction by "
-         "linearization: each RMSE with its 95 % band, and the share of points whose 95 % band reaches past "
-         "their tolerance. A verdict whose band stays on its side of the target holds with the band inside; "
-         "one whose band crosses the target could go either way on these data. The parity figures draw each "
-         "point's band.", "",
-         "| data | metric | RMSE | 95 % band | target | verdict | confidence | points whose band crosses the tolerance |",
-         "|---|---|---:|---:|---|---|---|---:|"]
+         "The factors' covariance (each factor's from the last fit that set it, as in the table above) carried "
+         "to every prediction by linearization. An RMSE is shown with its 95 % band; a share within tolerance "
+         "with its range when every error moves by its band away from, then toward zero. A verdict whose band "
+         "stays on its side of the target holds with the band inside; one whose band crosses the target could "
+         "go either way on these data. The last column counts the points whose band reaches across their "
+         "tolerance.", "",
+         "| data | metric | value (95 % band) | target | verdict | confidence | points whose band crosses the tolerance |",
+         "|---|---|---|---|---|---|---:|"]
     for t in TARGET_LIST:
-        if t.statistic != "rmse" or t.kind not in result.calibrated:
-            continue
-        ev = result.calibrated[t.kind]
-        rmse = ev.summary()[t.metric].rmse
-        band = result.bands.rmse[t.kind][t.metric]
-        rows = result.bands.rows[t.kind][t.metric]
-        m = METRICS[t.metric]
-        across = [_crosses(abs(p.error[t.metric]), b, m.tol_for(p.inputs[t.metric])) for p, b in zip(ev.points, rows)
-                  if math.isfinite(p.error.get(t.metric, math.nan)) and math.isfinite(b)]
-        word = "PASS" if t.met_by(rmse) else "FAIL"
-        L.append(f"| {t.kind} | {t.metric} | {_md_cell(rmse, '.2f')} | {_md_cell(band, '.2f')} | {t.describe()} "
-                 f"| {word} | {result.bands.confidence(t.kind, t.metric, rmse, t.limit)} "
-                 f"| {sum(across)} of {len(across)} |")
+        if t.statistic in ("rmse", "within_pct") and t.kind in evaluations and t.kind in bands.rows:
+            L.append(_band_row(bands, t, evaluations[t.kind]))
     return L + [""]
 
 
@@ -165,7 +178,7 @@ def write_steady_report(result: SteadyCalibration, out_dir: Path) -> Path:
     L += ["Targets (issue 3): " + "; ".join(f"{k} {v}" for k, v in TARGETS.items()), "",
           "## Fit", "", "```", result.fit.report(), "", result.fuel_flow.report(), "```", ""]
     L += identifiability_section([result.fit, result.fuel_flow])
-    L += bands_section(result)
+    L += bands_section(result.bands, result.calibrated)
     L += ["## Factors", "", "| factor | value | bounds | acts on |", "|---|---:|---|---|"]
     for n in result.fit.names + result.fuel_flow.names:
         f = REGISTRY[n]
@@ -223,7 +236,8 @@ def write_trims_report(result: TrimsCalibration, out_dir: Path) -> Path:
         if kind not in result.evaluations["steady"]:
             continue
         for m in metrics:
-            figs[f"{kind}_{m}"] = plots.parity_panels({lab: result.evaluations[lab][kind] for lab in labels}, m)
+            band = {labels[-1]: result.bands.rows[kind][m]} if result.bands else None
+            figs[f"{kind}_{m}"] = plots.parity_panels({lab: result.evaluations[lab][kind] for lab in labels}, m, band)
     for k, fig in figs.items():
         plots.save(fig, out_dir / f"trims_{k}.png")
     L = [f"# {name}: flight-test trim calibration (stage 2a)", "",
@@ -253,6 +267,7 @@ def write_trims_report(result: TrimsCalibration, out_dir: Path) -> Path:
     for r in result.steps:
         L += [r.report(), ""]
     L += ["```", ""] + identifiability_section(result.steps)
+    L += bands_section(result.bands, {**list(result.evaluations.values())[-1], **result.poh_after})
     L += ["## Parity plots (baseline, stage 1, after each step)", ""]
     for k in figs:
         L += [f"![{k}](trims_{k}.png)", ""]

@@ -135,10 +135,11 @@ def parity(evals: Mapping[str, object], metric: str, ax=None, bands: Mapping[str
     return fig
 
 
-def parity_panels(evals: Mapping[str, object], metric: str) -> Figure:
+def parity_panels(evals: Mapping[str, object], metric: str, bands: Mapping[str, np.ndarray] | None = None) -> Figure:
     """One parity panel per model state (e.g. baseline, after each step), same axes, with
     the tolerance band and the share within it in each title; more than
-    :data:`PANELS_PER_ROW` panels wrap to rows."""
+    :data:`PANELS_PER_ROW` panels wrap to rows. ``bands``: per label, the 95 % prediction
+    band of each point (error bars)."""
     n = len(evals)
     cols = min(n, PANELS_PER_ROW)
     rows = -(-n // PANELS_PER_ROW)
@@ -165,6 +166,11 @@ def parity_panels(evals: Mapping[str, object], metric: str) -> Figure:
         inside = np.abs(y - x) <= np.array([m.tol_for(v) for v in x]) + 1e-9
         ax.plot(x[ok & inside], y[ok & inside], "o", ms=3.5, color="tab:blue", label="within tolerance")
         ax.plot(x[ok & ~inside], y[ok & ~inside], "o", ms=3.5, color="tab:red", label="outside tolerance")
+        band = (bands or {}).get(label)
+        if band is not None and (ok & np.isfinite(band)).any():
+            b = ok & np.isfinite(band)
+            ax.errorbar(x[b], y[b], yerr=band[b], fmt="none", ecolor="k", elinewidth=0.6, capsize=1.5, alpha=0.6,
+                        label="95 % prediction band")
         if k == 0:
             ax.legend(fontsize=6, loc="upper left")
         share = 100.0 * np.sum(ok & inside) / max(1, len(x))
