@@ -182,7 +182,6 @@ CALIBRATE_STAGES = {"steady": ("steady",), "trims": ("trims",), "dynamic": ("dyn
                     "all": ("steady", "trims", "dynamic")}
 FINAL_MODEL = {"steady": "stage 1 (POH climb and cruise)", "trims": "stage 2a (flight-test trims, after stage 1)",
                "dynamic": "stage 2b (dynamic tests, after stages 1 and 2a)"}
-STAGE_SHORT = {"steady": "stage 1", "trims": "stage 2a", "dynamic": "stage 2b"}
 STAGE_RUNS = {"steady": _calibrate_steady, "trims": _calibrate_trims, "dynamic": _calibrate_dynamic}
 
 
@@ -225,7 +224,7 @@ def cmd_calibrate(a) -> int:
             factors = steady_factors(factors) if stage == "trims" else factors
         factors, summaries = STAGE_RUNS[stage](a, root, say, factors, run)
         final = FINAL_MODEL[stage]
-        history.append((STAGE_SHORT[stage], verdicts(summaries)))
+        history.append((STAGE_NAMES[stage], verdicts(summaries)))
     where = "not written (--no-write)" if a.no_write else f"written to {root / 'aircraft' / a.aircraft}"
     print(f"\nfinal model: {final}, {where}")
     vs = verdicts(summaries)

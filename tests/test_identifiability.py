@@ -7,6 +7,7 @@ import pytest
 from jsbsim_calib.calibration.fit import FitResult, fit, residual_group
 from jsbsim_calib.calibration.points import PointSet, point_residuals
 from jsbsim_calib.data.load import load_dataset
+from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.report.identifiability import identifiability_section
@@ -66,7 +67,8 @@ def test_a_band_is_the_factors_interval_carried_through_the_model(repo, fuel_and
     res = fuel_and_pitch_damping
     cruise = load_dataset(repo / "data" / "c172_poh_cruise.csv")
     with Simulator(repo, "c172") as sim:
-        bands = prediction_bands(sim, res.final, [res], {"poh_cruise": cruise})
+        sim.set_factors(res.final)
+        bands = prediction_bands(sim, res.final, [res], {"poh_cruise": evaluate_dataset(sim, cruise)})
         conds = PointSet.from_dataset(cruise, sim).conditions
         f = res.final.factor("K_FF")
         d = 4 * 0.002 * 0.5 * (f.upper - f.lower)

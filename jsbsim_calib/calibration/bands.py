@@ -18,7 +18,7 @@ import numpy as np
 
 from ..core import numerics
 from ..data.schemas import Dataset
-from ..evaluation.evaluate import evaluate_dataset
+from ..evaluation.evaluate import Evaluation, evaluate_dataset
 from ..factors import FactorSet
 from ..jsbsim.simulator import Simulator
 from .fit import Z95, FitResult
@@ -78,13 +78,15 @@ def covariance(fits: Sequence[FitResult]) -> tuple[list[str], np.ndarray] | None
     return names, C
 
 
+def _values(evaluations: Mapping[str, Evaluation]) -> dict[str, dict[str, np.ndarray]]:
+    """The model's value at every row, per data kind and metric (NaN where it did not trim)."""
+    return {kind: {m: np.array([p.model.get(m, np.nan) for p in ev.points]) for m in ev.metrics}
+            for kind, ev in evaluations.items()}
+
+
 def _predictions(sim: Simulator, factors: FactorSet, data: Mapping[str, Dataset]) -> dict[str, dict[str, np.ndarray]]:
     sim.set_factors(factors)
-    out = {}
-    for kind, ds in data.items():
-        ev = evaluate_dataset(sim, ds)
-        out[kind] = {m: np.array([p.model.get(m, np.nan) for p in ev.points]) for m in ds.metrics}
-    return out
+    return _values({kind: evaluate_dataset(sim, ds) for kind, ds in data.items()})
 
 
 def _quadratic(g: np.ndarray, C: np.ndarray) -> float:
@@ -92,14 +94,16 @@ def _quadratic(g: np.ndarray, C: np.ndarray) -> float:
 
 
 def prediction_bands(sim: Simulator, factors: FactorSet, fits: Sequence[FitResult],
-                     data: Mapping[str, Dataset]) -> Bands | None:
-    """The bands of the model at ``factors`` on ``data`` from the covariance of ``fits``
-    (None when a fit has no covariance). Costs one evaluation of the data per factor."""
+                     evaluations: Mapping[str, Evaluation]) -> Bands | None:
+    """The bands of the model at ``factors`` (``evaluations``: its evaluations there, by data
+    kind) from the covariance of ``fits`` (None when a fit has no covariance). Costs one
+    evaluation of the data per factor."""
     cov = covariance(fits)
     if cov is None:
         return None
     names, C = cov
-    base = _predictions(sim, factors, data)
+    data = {kind: ev.dataset for kind, ev in evaluations.items()}
+    base = _values(evaluations)
     x0 = factors.vector(names)
     sens = []                                   # per factor: predictions' change per unit step
     for i in range(len(names)):

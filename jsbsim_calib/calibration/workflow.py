@@ -57,7 +57,7 @@ class SteadyCalibration:
     cruise_points: list[int]
     aero_curves: dict[str, AeroCurves]           # baseline, calibrated
     propeller_tables: dict[str, PropellerTables]  # baseline, calibrated (BEM breakpoints)
-    bands: Bands | None = None                    # the calibrated model's 95 % prediction bands (None: no covariance)
+    bands: Bands | None = None                    # the calibrated model's 95 % prediction bands (None: not computed)
 
     def summary(self) -> dict:
         """The stage's record (calibration.json), JSON-safe."""
@@ -111,9 +111,10 @@ def run_steady(root: Path | str, name: str, *, start: FactorSet | None = None,
         say(f"calibrated: trimming {len(climb) + len(cruise)} POH points")
         calibrated = {k: evaluate_dataset(sim, ds) for k, ds in data.items()}
         trims = sim.trims                       # the calibration's trims, not the bands'
+        drawn = None
         if bands:
             say("prediction bands: one evaluation of the POH points per fitted factor")
-        drawn = prediction_bands(sim, ff.final, (fit, ff), data) if bands else None
+            drawn = prediction_bands(sim, ff.final, (fit, ff), calibrated)
     curves, tables = model_curves(root, name, ff.final)
     return SteadyCalibration(name, fit, ff, baseline, calibrated,
                              {k: thesis_summary(ds) for k, ds in data.items()}, ff.final,
@@ -267,9 +268,10 @@ def run_trims(root: Path | str, name: str, *, skip: tuple[str, ...] = (), steps:
         say(f"stage 2a model: trimming {sum(len(d) for d in poh.values())} POH points")
         poh_after = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
         trims = sim.trims                       # the calibration's trims, not the bands'
+        drawn = None
         if bands and results:
             say("prediction bands: one evaluation of the flight-test and POH points per factor")
-        drawn = prediction_bands(sim, final, results, {**ft, **poh}) if bands and results else None
+            drawn = prediction_bands(sim, final, results, {**evaluations[results[-1].stage], **poh_after})
     return TrimsCalibration(name, results, evaluations, poh_before, poh_after,
                             {k: thesis_summary(ds) for k, ds in ft.items()}, final, list(skip),
                             time.perf_counter() - t0, trims, drawn)

@@ -100,6 +100,15 @@ def cruise_vs_speed(evals: Mapping[str, object], metric: str, ax=None) -> Figure
     return fig
 
 
+def _band_bars(ax, x: np.ndarray, y: np.ndarray, ok: np.ndarray, band: np.ndarray | None, **style) -> None:
+    """Each point's 95 % prediction band as an error bar (points drawn and with a finite band)."""
+    if band is None:
+        return
+    b = ok & np.isfinite(band)
+    if b.any():
+        ax.errorbar(x[b], y[b], yerr=band[b], fmt="none", **style)
+
+
 def parity(evals: Mapping[str, object], metric: str, ax=None, bands: Mapping[str, np.ndarray] | None = None) -> Figure:
     """Model vs data for one metric, with the tolerance band; ``bands``: per label, the 95 %
     prediction band of each point (error bars)."""
@@ -111,11 +120,8 @@ def parity(evals: Mapping[str, object], metric: str, ax=None, bands: Mapping[str
         ok = np.isfinite(x) & np.isfinite(y)
         st = _style(label)
         ax.plot(x[ok], y[ok], "o", ms=4, color=st.get("color"), alpha=0.8, label=label)
-        band = (bands or {}).get(label)
-        if band is not None and (ok & np.isfinite(band)).any():
-            b = ok & np.isfinite(band)
-            ax.errorbar(x[b], y[b], yerr=band[b], fmt="none", ecolor=st.get("color"), elinewidth=0.8, capsize=2,
-                         alpha=0.7, label=f"{label}: 95 % prediction band")
+        _band_bars(ax, x, y, ok, (bands or {}).get(label), ecolor=st.get("color"), elinewidth=0.8, capsize=2,
+                   alpha=0.7, label=f"{label}: 95 % prediction band")
         if ok.any():
             lo, hi = min(lo, x[ok].min(), y[ok].min()), max(hi, x[ok].max(), y[ok].max())
     if np.isfinite(lo):
@@ -166,11 +172,8 @@ def parity_panels(evals: Mapping[str, object], metric: str, bands: Mapping[str, 
         inside = np.abs(y - x) <= np.array([m.tol_for(v) for v in x]) + 1e-9
         ax.plot(x[ok & inside], y[ok & inside], "o", ms=3.5, color="tab:blue", label="within tolerance")
         ax.plot(x[ok & ~inside], y[ok & ~inside], "o", ms=3.5, color="tab:red", label="outside tolerance")
-        band = (bands or {}).get(label)
-        if band is not None and (ok & np.isfinite(band)).any():
-            b = ok & np.isfinite(band)
-            ax.errorbar(x[b], y[b], yerr=band[b], fmt="none", ecolor="k", elinewidth=0.6, capsize=1.5, alpha=0.6,
-                        label="95 % prediction band")
+        _band_bars(ax, x, y, ok, (bands or {}).get(label), ecolor="k", elinewidth=0.6, capsize=1.5, alpha=0.6,
+                   label="95 % prediction band")
         if k == 0:
             ax.legend(fontsize=6, loc="upper left")
         share = 100.0 * np.sum(ok & inside) / max(1, len(x))

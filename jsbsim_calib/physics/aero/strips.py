@@ -154,15 +154,18 @@ class StripModel:
         i = np.minimum(pos.astype(int), len(_GRID) - 2)
         return i, pos - i, (np.arange(self.strips.n) if rows is None else rows)
 
+    def _coefficient(self, k: int, i: np.ndarray, w: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Coefficient ``k`` of the strips ``r`` between grid columns ``i`` and ``i + 1`` (weight ``w``)."""
+        return self._clean(k, r, i) * (1.0 - w) + self._clean(k, r, i + 1) * w
+
     def polar(self, alpha_deg: np.ndarray, rows: np.ndarray | None = None):
         """Clean-section cl, cd, cm of the strips (all, or ``rows``) at alpha [deg]."""
-        i, w, r = self._at(alpha_deg, rows)
-        return tuple(self._clean(k, r, i) * (1.0 - w) + self._clean(k, r, i + 1) * w for k in range(3))
+        at = self._at(alpha_deg, rows)
+        return tuple(self._coefficient(k, *at) for k in range(3))
 
     def polar_cl(self, alpha_deg: np.ndarray) -> np.ndarray:
         """Clean-section cl of every strip at alpha [deg] (:meth:`polar`'s cl, alone)."""
-        i, w, r = self._at(alpha_deg, None)
-        return self._clean(0, r, i) * (1.0 - w) + self._clean(0, r, i + 1) * w
+        return self._coefficient(0, *self._at(alpha_deg, None))
 
     def line(self, alpha: float, beta: float = 0.0) -> LiftingLine:
         """Lifting line with the wake along the free stream in the plane of symmetry.
