@@ -11,6 +11,7 @@ from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.factors import FactorSet
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.report.identifiability import identifiability_section
+from jsbsim_calib.report.verdicts import TARGETS
 
 
 def test_residual_groups_drop_the_row_and_keep_the_quantity():
@@ -122,3 +123,8 @@ def test_a_share_within_tolerance_gets_the_range_its_bands_allow():
     err, tol = np.array([0.5, -0.9, 1.5, np.nan]), np.ones(4)
     assert b.within_range("snapshot", "rudder_deg", err, tol) == (25.0, 75.0)   # a NaN: outside at both ends
     assert all(math.isnan(v) for v in b.within_range("snapshot", "pitch_deg", err, tol))
+    from jsbsim_calib.calibration.bands import holds
+    within_95 = next(t for t in TARGETS if t.statistic == "within_pct" and t.limit == 95.0)
+    assert holds(90.0, 100.0, within_95.met_by) == "band across" and holds(96.0, 100.0, within_95.met_by) == "band inside"
+    assert holds(25.0, 75.0, within_95.met_by) == "band inside"           # a sure FAIL
+    assert holds(float("nan"), 100.0, within_95.met_by) == "no band"    # a share without a band is never confident

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -26,6 +26,15 @@ from .fit import Z95, FitResult
 STEP = 0.002          # forward-difference step in normalized factor units (the fits' polish step)
 
 
+def holds(low: float, high: float, met_by: Callable[[float], bool]) -> str:
+    """How a verdict stands over its band, from the statistic at the band's two ends: "band
+    inside" (the same verdict at both), "band across" (not), or "no band" (an end is not a
+    number: a NaN never reads as a confident verdict)."""
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return "no band"
+    return "band inside" if met_by(low) == met_by(high) else "band across"
+
+
 @dataclass
 class Bands:
     """95 % half-widths of the model's predictions (``rows[kind][metric]``, one per data row,
@@ -37,9 +46,8 @@ class Bands:
     def confidence(self, kind: str, metric: str, rmse: float | None, limit: float) -> str:
         """How an RMSE verdict stands against its band: inside, across the limit, or unknown."""
         band = self.rmse.get(kind, {}).get(metric, math.nan)
-        if rmse is None or not (math.isfinite(rmse) and math.isfinite(band)):
-            return "no band"
-        return "band inside" if (rmse + band <= limit) == (rmse - band <= limit) else "band across"
+        value = math.nan if rmse is None else rmse
+        return holds(value - band, value + band, lambda v: v <= limit)
 
     def within_range(self, kind: str, metric: str, errors: np.ndarray, tolerances: np.ndarray) -> tuple[float, float]:
         """The share [%] of the rows within their tolerance at the two ends of the bands (each

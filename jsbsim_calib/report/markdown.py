@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 
 from ..calibration.diagnose import REGRESSORS
-from ..calibration.bands import Bands
+from ..calibration.bands import Bands, holds
 from ..calibration.workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
 from ..data.schemas import METRICS
 from ..factors import REGISTRY
@@ -112,7 +112,7 @@ def _band_row(bands: Bands, t, ev) -> str:
     else:
         lo, hi = bands.within_range(t.kind, t.metric, err, tol)
         shown = f"{_md_cell(value, '.1f')} % ({_md_cell(lo, '.0f')}-{_md_cell(hi, '.0f')} %)"
-        confidence = "band inside" if t.met_by(lo) == t.met_by(hi) else "band across"
+        confidence = holds(lo, hi, t.met_by)
     word = "PASS" if t.met_by(value) else "FAIL"
     return f"| {t.kind} | {t.metric} | {shown} | {t.describe()} | {word} | {confidence} | {across} of {len(pts)} |"
 
