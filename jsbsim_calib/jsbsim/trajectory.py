@@ -291,7 +291,8 @@ def _node(pm, prop: str, m: Maneuver):
 
 
 def export(sim, m: Maneuver, script_dir: Path, *, rate_hz: float = RATE_HZ,
-           output_rate_hz: float | None = None, flown: Trajectory | None = None) -> dict[str, Path]:
+           output_rate_hz: float | None = None, flown: Trajectory | None = None,
+           init_dir: Path | None = None) -> dict[str, Path]:
     """Write the maneuver as a script for the aircraft as its JSBSim root holds it: the script
     (``script_dir/<name>.xml``), its initialization file (in the aircraft's folder) and a CSV
     output directive (``script_dir/<name>_output.xml``, written to ``<name>.csv``).
@@ -299,7 +300,9 @@ def export(sim, m: Maneuver, script_dir: Path, *, rate_hz: float = RATE_HZ,
     ``flown``: a trajectory :func:`fly` returned for this maneuver: the script starts from
     its trim (a second trim of the same point agrees only to its convergence tolerance, and
     JSBSim's runner would then replay a neighbouring trace, not this one). The factor values
-    come from the aircraft file either way."""
+    come from the aircraft file either way. ``init_dir``: write the initialization file there
+    instead, the script naming it by its absolute path (JSBSim reads it from there), so that
+    the aircraft's folder is left as it is."""
     if flown is not None and flown.spec is not None:
         values = sim.property_values()
         spec = replace(flown.spec, start={k: v for k, v in flown.spec.start.items() if k not in values})
@@ -308,6 +311,8 @@ def export(sim, m: Maneuver, script_dir: Path, *, rate_hz: float = RATE_HZ,
         spec = _spec(sim, m, _trim(sim, m), rate_hz, with_values=False)
     props = [p for p, _ in RECORD.values()]
     script_dir = Path(script_dir)
+    if init_dir is not None:
+        spec = replace(spec, init_name=str(Path(init_dir).resolve() / spec.init_name))
     paths = {"script": script_dir / f"{m.name}.xml", "output": script_dir / f"{m.name}_output.xml",
              "init": sim.paths.folder / f"{spec.init_name}.xml", "csv": script_dir / f"{m.name}.csv"}
     write(init_tree(spec), paths["init"])

@@ -27,9 +27,13 @@ Start: ``pressure_alt_ft``, ``kcas`` or ``ktas``, ``weight_lb``, ``cg_in``, opti
 ``flaps_deg``, ``vs_fpm``, ``bank_deg`` (a steady coordinated turn), ``throttle`` (given: the
 throttle is fixed and the flight path free, e.g. a full-throttle climb or an idle glide),
 ``mixture`` (cruise | climb; default climb at full throttle) and ``isa_dev_c``. Inputs are
-ramped shapes (``pulse``, ``step``, ``doublet``; ``ramp_s`` default 0.15 s) of a surface (data
-signs, degrees), the throttle (change) or the flaps (change, degrees); ``length_s`` is the hold
-(each half of a doublet; a step without it is held to the end). Pilot loops (axis pitch, roll,
+ramped shapes (``pulse``, ``step``, ``doublet``, ``3211``, ``multisine``; ``ramp_s`` default
+0.15 s) of a surface (data signs, degrees), the throttle (change) or the flaps (change,
+degrees); ``length_s`` is the hold (each half of a doublet; the unit of a 3-2-1-1, whose
+steps last 3, 2, 1 and 1 units; the whole of a multisine; a step without it is held to the
+end). A multisine sums the harmonics of 1/``length_s`` within ``band_hz`` (default
+:data:`MULTISINE_BAND_HZ`) with Schroeder's phases, scaled so that its peak is ``amplitude``
+and tapered over ``ramp_s`` at both ends. Pilot loops (axis pitch, roll,
 yaw or speed; one loop per axis, several windows allowed) hold the trimmed value, a ``target``
 or the trimmed value plus an ``offset``.
 
@@ -75,7 +79,9 @@ NOISE: dict[str, tuple[float, float]] = {
     "column_in": (0.01, 0.01), "wheel_deg": (0.3, 0.3), "pedal_in": (0.01, 0.01),
     "throttle_norm": (0.002, 0.0), "rpm": (10.0, 5.0),
 }
-SHAPES = ("pulse", "step", "doublet")
+SHAPES = ("pulse", "step", "doublet", "3211", "multisine")
+MULTISINE_BAND_HZ = (0.1, 1.5)   # a multisine's default band: the phugoid is slower, the short period inside
+MULTISINE_DT_S = 0.05            # breakpoint spacing of a multisine
 INPUT_CHANNELS = ("elevator_deg", "aileron_deg", "rudder_deg", "throttle_norm", "flaps_deg")
 SURFACE_OF = {"elevator_deg": "elevator", "aileron_deg": "aileron", "rudder_deg": "rudder"}
 OFFSET_LOOPS = ("pitch", "bank", "sideslip", "airspeed")    # loops whose target may be the trim plus an offset
@@ -92,6 +98,7 @@ class InputSpec:
     start_s: float
     length_s: float | None = None
     ramp_s: float = DEFAULT_RAMP_S
+    band_hz: tuple[float, float] = MULTISINE_BAND_HZ      # a multisine's band
 
 
 @dataclass(frozen=True)
@@ -206,18 +213,37 @@ def _start(r: _Reader) -> Condition | None:
 
 
 def _input(r: _Reader, duration_s: float | None) -> InputSpec | None:
-    r.keys(("shape", "channel", "amplitude", "start_s", "length_s", "ramp_s"))
+    r.keys(("shape", "channel", "amplitude", "start_s", "length_s", "ramp_s", "band_hz"))
     n = len(r.problems)
     shape, channel = r.text("shape", SHAPES), r.text("channel", INPUT_CHANNELS)
     amp = r.number("amplitude", -60, 60)
     start = r.number("start_s", 0, duration_s if duration_s else 3600)
     length = r.number("length_s", 0.05, 3600, required=shape != "step")
     ramp = r.number("ramp_s", 0.01, 10, DEFAULT_RAMP_S)
+    band = _band(r, shape, length)
     if channel == "throttle_norm" and amp is not None and abs(amp) > 1:
         r.bad("amplitude", f"{amp:g}: a throttle change is within [-1, 1]")
     if len(r.problems) > n:
         return None
-    return InputSpec(shape, channel, amp, start, length, ramp)
+    return InputSpec(shape, channel, amp, start, length, ramp, band)
+
+
+def _band(r: _Reader, shape: str | None, length_s: float | None) -> tuple[float, float]:
+    """A multisine's band [Hz]: two numbers, low < high, holding at least one harmonic of 1/length_s."""
+    if "band_hz" not in r.doc:
+        return MULTISINE_BAND_HZ
+    v = r.doc["band_hz"]
+    ok = (isinstance(v, list) and len(v) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                    and math.isfinite(x) and 0 < x <= 50 for x in v) and v[0] < v[1])
+    if shape != "multisine":
+        r.bad("band_hz", "applies to a multisine only")
+    elif not ok:
+        r.bad("band_hz", f"{v!r}: give [low, high] in Hz, 0 < low < high <= 50")
+    elif length_s is not None and not _harmonics(length_s, (float(v[0]), float(v[1]))):
+        r.bad("band_hz", f"{v!r}: no harmonic of 1/length_s = {1 / length_s:.3g} Hz within the band")
+    else:
+        return float(v[0]), float(v[1])
+    return MULTISINE_BAND_HZ
 
 
 def _hold(r: _Reader, axis: str, duration_s: float | None) -> HoldSpec | None:
@@ -359,7 +385,7 @@ def check_settings(seed: int, noise: float) -> None:
 
 
 # --------------------------------------------------------------------------- pilot inputs
-def _shape(spec: InputSpec, start_s: float, length_s: float, amplitude: float):
+def input_shape(spec: InputSpec, start_s: float, length_s: float, amplitude: float):
     """Breakpoints of a ramped shape (times, values)."""
     s, r, a = start_s, spec.ramp_s, amplitude
     if spec.shape == "pulse":
@@ -368,9 +394,36 @@ def _shape(spec: InputSpec, start_s: float, length_s: float, amplitude: float):
         t1 = s + r + length_s
         return (0.0, s, s + r, t1, t1 + 2 * r, t1 + 2 * r + length_s, t1 + 3 * r + length_s), \
             (0.0, 0.0, a, a, -a, -a, 0.0)
+    if spec.shape == "3211":
+        times, values, t = [0.0, s], [0.0, 0.0], s
+        for units, sign in ((3, 1.0), (2, -1.0), (1, 1.0), (1, -1.0)):
+            times += [t + r, t + r + units * length_s]
+            values += [sign * a, sign * a]
+            t += r + units * length_s
+        return tuple(times + [t + r]), tuple(values + [0.0])
+    if spec.shape == "multisine":
+        t = np.arange(0.0, length_s + 1e-9, MULTISINE_DT_S)
+        return tuple([0.0, *(s + t).tolist()]), tuple([0.0, *(a * multisine(t, length_s, spec.band_hz, r)).tolist()])
     if spec.length_s is None:
         return (0.0, s, s + r), (0.0, 0.0, a)
     return (0.0, s, s + r, s + r + length_s, s + 2 * r + length_s), (0.0, 0.0, a, a, 0.0)
+
+
+def _harmonics(length_s: float, band_hz: tuple[float, float]) -> list[int]:
+    return [k for k in range(1, int(band_hz[1] * length_s) + 1) if band_hz[0] <= k / length_s <= band_hz[1]]
+
+
+def multisine(t: np.ndarray, length_s: float, band_hz: tuple[float, float], taper_s: float) -> np.ndarray:
+    """A unit-peak multisine at times ``t`` in [0, length_s]: the harmonics of 1/length_s within
+    the band, Schroeder's phases (a low peak for the power it carries), tapered linearly over
+    ``taper_s`` at both ends (it starts and ends at zero)."""
+    ks = _harmonics(length_s, band_hz)
+    n = len(ks)
+    x = sum(np.sin(2.0 * np.pi * k * t / length_s - np.pi * i * (i + 1) / n) for i, k in enumerate(ks))
+    taper = np.clip(np.minimum(t, length_s - t) / max(taper_s, 1e-9), 0.0, 1.0)
+    x = x * taper
+    peak = float(np.max(np.abs(x))) if len(x) else 0.0
+    return x / peak if peak > 0 else x
 
 
 def pilot_input(spec: InputSpec, duration_s: float, timing_s: float, amplitude_frac: float, rng) -> Input:
@@ -383,7 +436,7 @@ def pilot_input(spec: InputSpec, duration_s: float, timing_s: float, amplitude_f
     if spec.channel in SURFACE_OF:
         amp = to_jsbsim_sign(SURFACE_OF[spec.channel], amp * (1.0 + float(rng.uniform(-amplitude_frac,
                                                                                       amplitude_frac))))
-    times, values = _shape(spec, start, length, amp)
+    times, values = input_shape(spec, start, length, amp)
     return Input(spec.channel, times, values, relative=True)
 
 
@@ -489,3 +542,67 @@ def synthesize_maneuvers(sim, plan: Plan, out_dir: str | Path, *, seed: int = 0,
         load_time_history(csv_path)
         written.append(csv_path)
     return written
+
+
+# --------------------------------------------------------------------------- writing a plan
+def _toml(v) -> str:
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (tuple, list)):
+        return "[" + ", ".join(_toml(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{k} = {_toml(x)}" for k, x in v.items()) + " }"
+    return repr(float(v)) if isinstance(v, float) else repr(v)
+
+
+def _start_table(c: Condition) -> dict:
+    out: dict = {"pressure_alt_ft": c.pressure_alt_ft}
+    out.update({"kcas": c.kcas} if c.kcas is not None else {"ktas": c.ktas})
+    out.update(weight_lb=c.weight_lb, cg_in=c.cg_in)
+    extra = {"flaps_deg": c.flaps_deg, "vs_fpm": c.vs_fpm, "bank_deg": c.bank_deg, "isa_dev_c": c.isa_dev_c}
+    out.update({k: v for k, v in extra.items() if v})
+    if c.mode == "full_throttle":
+        out["throttle"] = c.throttle
+    out["mixture"] = c.mixture
+    return out
+
+
+def _input_table(i: InputSpec) -> dict:
+    out = {"shape": i.shape, "channel": i.channel, "amplitude": i.amplitude, "start_s": i.start_s}
+    if i.length_s is not None:
+        out["length_s"] = i.length_s
+    out["ramp_s"] = i.ramp_s
+    if i.shape == "multisine":
+        out["band_hz"] = list(i.band_hz)
+    return out
+
+
+def _pilot_table(holds: Sequence[HoldSpec]) -> dict:
+    out: dict = {}
+    for h in holds:
+        entry = {"loop": h.loop, "start_s": h.start_s}
+        entry.update({"target": h.target} if h.target is not None else {})
+        entry.update({"offset": h.offset} if h.offset is not None else {})
+        entry.update({"end_s": h.end_s} if math.isfinite(h.end_s) else {})
+        out.setdefault(h.axis, []).append(entry)
+    return out
+
+
+def plan_text(name: str, description: str, maneuvers: Sequence[ManeuverSpec], *, sample_rate_hz: float = DEFAULT_RATE_HZ,
+              timing_s: float = 0.0, amplitude_frac: float = 0.0, header: str = "") -> str:
+    """A plan file (this module's format) that :func:`load_plan` reads back to the same maneuvers."""
+    lines = [f"# {x}" if x else "#" for x in header.splitlines()]
+    lines += ["[plan]", f"name = {_toml(name)}", f"description = {_toml(description)}",
+              f"sample_rate_hz = {_toml(float(sample_rate_hz))}", "", "[variation]",
+              f"timing_s = {_toml(float(timing_s))}", f"amplitude_frac = {_toml(float(amplitude_frac))}"]
+    for m in maneuvers:
+        lines += ["", "[[maneuver]]", f"id = {_toml(m.id)}", f"kind = {_toml(m.kind)}", f"part60 = {_toml(m.part60)}",
+                  f"title = {_toml(m.title)}", f"duration_s = {_toml(float(m.duration_s))}",
+                  f"start = {_toml(_start_table(m.start))}"]
+        if m.inputs:
+            lines.append(f"inputs = {_toml([_input_table(i) for i in m.inputs])}")
+        if m.holds:
+            lines.append(f"pilot = {_toml(_pilot_table(m.holds))}")
+        if m.notes:
+            lines.append(f"notes = {_toml(m.notes)}")
+    return "\n".join(lines) + "\n"
