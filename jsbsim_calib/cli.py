@@ -17,6 +17,7 @@ reports, print).
     jsbsim-calib slipstream AIRCRAFT [--stage steady|all] [--variant off|swirl|theory|fitted] [--max-nfev N] [--json OUT]
     jsbsim-calib airfoil NAME
     jsbsim-calib part60 AIRCRAFT --flight-test DIR_OR_FILE... [--json OUT] [--exit-zero]
+    jsbsim-calib plan AIRCRAFT [--flight-test DIR_OR_FILE...] [--count N] [--factor NAME...] [--out DIR]
 
 The global options (--root, --quiet, --verbose, --log-file, --executor, --workers, --scheduler) go
 before or after the command. Exit codes: 0 done; 1 regress: something moved; 2 an error (bad input, nothing written
@@ -567,6 +568,45 @@ def cmd_regress(a) -> int:
     return 1 if res.moved else 0
 
 
+def cmd_plan(a) -> int:
+    from .calibration.workflow import run_plan
+    from .report.flight_card import write_flight_card
+    out = Path(a.out or Path(a.report_dir) / a.aircraft / "plan")
+    res = run_plan(Path(a.root), a.aircraft, out, flight_test=a.flight_test, base_plan=a.plan, count=a.count,
+                   targets=tuple(a.factor or ()), progress=_progress(a))
+    prop = res.proposal
+    card = write_flight_card(prop, out)
+    print(f"{a.aircraft}: data in hand: {prop.evidence}")
+    print("standard errors now: " + ", ".join(f"{n} {prop.se_in_hand[n]:.3g}" for n in prop.names))
+    print(f"aimed at: {', '.join(prop.targets)}; {prop.tried} candidates flown, {len(prop.dropped)} left out")
+    for k, p in enumerate(prop.picks, 1):
+        m = p.scored.candidate.spec
+        after = ", ".join(f"{n} {p.se_after[n]:.3g}" for n in prop.targets)
+        print(f"{k}. {m.id} {m.title}: {after}")
+    print(f"flight card: {card['markdown']} and {card['html']}")
+    print(f"plan: {res.plan_file} (fly it on a truth: jsbsim-calib synth --truth AIRCRAFT --plan {res.plan_file} "
+          f"--out DIR); JSBSim scripts: {res.plan_file.parent / 'scripts'}  ({res.wall_time_s:.0f} s)")
+    return 0
+
+
+def _plan_parser(sub) -> None:
+    from .factors import DYNAMIC_STEPS, set_in
+    n = sub.add_parser("plan", help="what to fly next: the maneuvers that most shrink the standard errors of the "
+                                    "loosest stage-2b factors, as a flight card (Markdown + HTML), a plan file and "
+                                    "JSBSim scripts")
+    n.add_argument("aircraft", help="aircraft name: folder aircraft/AIRCRAFT under --root")
+    n.add_argument("--flight-test", nargs="+", metavar="DIR_OR_FILE",
+                   help="the data in hand as time histories (default: the aircraft's flight-test results table)")
+    n.add_argument("--count", type=int, default=None, help="maneuvers to propose (default 4)")
+    n.add_argument("--factor", nargs="+", choices=set_in(DYNAMIC_STEPS), metavar="NAME",
+                   help="aim at these factors (default: the two loosest)")
+    n.add_argument("--plan", default="level5", help="the catalogue plan whose tests are moved to new conditions "
+                                                    "(default the packaged level5)")
+    n.add_argument("--out", help="folder to write to (default REPORT_DIR/AIRCRAFT/plan)")
+    n.add_argument("--report-dir", default="reports", help="reports folder (default reports/)")
+    n.set_defaults(func=cmd_plan)
+
+
 def _export_regress_parsers(sub) -> None:
     x = sub.add_parser("export", help="write a calibrated aircraft for a simulator: flightgear (an aircraft folder)")
     x.add_argument("target", choices=("flightgear",), help="flightgear: NAME-set.xml, the FDM, Engines/, README")
@@ -760,6 +800,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--report-dir", default="reports", help="where the report goes (REPORT_DIR/AIRCRAFT/part60/)")
     _verdict_options(q, "every test's verdict and its cases' metrics")
     q.set_defaults(func=cmd_part60)
+    _plan_parser(sub)
     _export_regress_parsers(sub)
     for command in sub.choices.values():
         _global_options(command, suppress=True)
@@ -814,7 +855,10 @@ def path_problems(a) -> list[Problem]:
         if truth_folder(a) is None:
             out.append(Problem("--truth", f"{a.truth}: neither an aircraft of --root ({Path(a.root) / 'aircraft'}) "
                                           "nor an aircraft folder"))
-    if a.command in ("close-loop", "part60"):
+    if a.command == "plan":
+        out += _output_folder("--out", a.out) if a.out else []
+        out += [] if a.count is None or 1 <= a.count <= 20 else [Problem("--count", f"{a.count}: give 1 to 20")]
+    if a.command in ("close-loop", "part60", "plan"):
         out += [Problem("--flight-test", f"{f}: no such file or folder") for f in (a.flight_test or ())
                 if not Path(f).exists()]
     if a.command == "regress":
