@@ -69,7 +69,7 @@ def main() -> None:
         warnings.simplefilter("ignore", QuirkWarning)
         steady = run_steady(ROOT, "c172", start=start, bands=False)
         trims = run_trims(ROOT, "c172", start=steady_factors(steady.factors), bands=False)
-        final = run_dynamic(ROOT, "c172", start=trims.factors).factors
+        final = run_dynamic(ROOT, "c172", start=trims.factors, bands=False).factors
     wall = time.perf_counter() - t0
     record = json.loads(AircraftPaths(ROOT, "c172").calibration.read_text())
     se = stderr_of_last_fit(record)

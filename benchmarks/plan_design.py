@@ -4,13 +4,13 @@ drawn at random, on a truth aircraft with known factors.
 The truth is the committed C172 with two damping factors moved inside their bounds (K_Cmq 2,
 K_Cnr 0.02; the product has K_Cmq on its bound and K_Cnr unfitted). The data in hand are the
 C172's flight-test results table (10 dynamic tests, 23 trims): their information about the
-stage-2b factors at the model (:func:`jsbsim_calib.calibration.design.results_information`),
+stage-2b factors at the model (:func:`jsbsim_calib.synthetic.design.results_information`),
 and an estimate drawn about the truth with the covariance they leave (per seed). Each arm
 flies its maneuvers on the truth (pilot scatter and sensor noise of the Level 5 plan, per
 seed), refits the six stage-2b factors to the records
-(:func:`~jsbsim_calib.calibration.design.refit`, from the in-hand estimate) and combines the
+(:func:`~jsbsim_calib.synthetic.design.refit`, from the in-hand estimate) and combines the
 refit's covariance with the data in hand
-(:func:`~jsbsim_calib.calibration.design.combined_errors`).
+(:func:`~jsbsim_calib.synthetic.design.combined_errors`).
 
 The issue's bar: the standard error of the two loosest factors falls at least 3x more with the
 plan than with random maneuvers, i.e. ``(SE in hand / SE plan) >= 3 (SE in hand / SE random)``,
@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from jsbsim_calib.calibration import design as D
-from jsbsim_calib.calibration.workflow import in_hand_information
+from jsbsim_calib.synthetic import design as D
+from jsbsim_calib.synthetic.design import in_hand_information
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.synthetic.maneuvers import load_plan
 

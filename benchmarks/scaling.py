@@ -71,7 +71,7 @@ def chain(executor) -> np.ndarray:
     """Stages 1, 2a and 2b in a row (nothing written): the final factors as a vector."""
     s1 = run_steady(ROOT, "c172", executor=executor, bands=False)
     s2a = run_trims(ROOT, "c172", start=steady_factors(s1.factors), executor=executor, bands=False)
-    s2b = run_dynamic(ROOT, "c172", start=s2a.factors, executor=executor)
+    s2b = run_dynamic(ROOT, "c172", start=s2a.factors, executor=executor, bands=False)
     return np.array(list(s2b.factors.as_dict().values()))
 
 

@@ -569,7 +569,7 @@ def cmd_regress(a) -> int:
 
 
 def cmd_plan(a) -> int:
-    from .calibration.workflow import run_plan
+    from .synthetic.design import run_plan
     from .report.flight_card import write_flight_card
     out = Path(a.out or Path(a.report_dir) / a.aircraft / "plan")
     res = run_plan(Path(a.root), a.aircraft, out, flight_test=a.flight_test, base_plan=a.plan, count=a.count,

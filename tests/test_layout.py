@@ -22,7 +22,8 @@ FLOORS = (
     ("data", "export", "generate"),
     ("evaluation",),
     ("calibration",),
-    ("report", "synthetic"),
+    ("synthetic",),
+    ("report",),
     ("cli",),
 )
 FLOOR = {room: k for k, rooms in enumerate(FLOORS) for room in rooms}

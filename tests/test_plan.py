@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jsbsim_calib.calibration import design as D
-from jsbsim_calib.calibration.workflow import in_hand_information
+from jsbsim_calib.synthetic import design as D
+from jsbsim_calib.synthetic.design import in_hand_information
 from jsbsim_calib.cli import main
 from jsbsim_calib.core.errors import CalibError, InputError
 from jsbsim_calib.jsbsim.simulator import Simulator

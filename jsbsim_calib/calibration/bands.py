@@ -19,6 +19,7 @@ import numpy as np
 from ..core import numerics
 from ..data.schemas import Dataset
 from ..evaluation.evaluate import Evaluation, evaluate_dataset
+from ..evaluation.evaluate_dynamic import TestResult, fly_test
 from ..factors import FactorSet
 from ..jsbsim.simulator import Simulator
 from .fit import Z95, FitResult
@@ -139,3 +140,38 @@ def prediction_bands(sim: Simulator, factors: FactorSet, fits: Sequence[FitResul
             grad = numerics.matvec(G[ok].T, err[ok]) / (ok.sum() * r)
             rmse[kind][m] = Z95 * math.sqrt(max(_quadratic(grad, C), 0.0))
     return Bands(rows, rmse)
+
+
+def _channel(r: TestResult) -> np.ndarray | None:
+    return None if r.trajectory is None else r.trajectory[r.test.channel]
+
+
+def response_bands(sim: Simulator, factors: FactorSet, fits: Sequence[FitResult],
+                   results: Sequence[TestResult]) -> dict[str, np.ndarray] | None:
+    """The 95 % band of each dynamic test's plotted response (its metric's channel over
+    maneuver time, ``results``: the model flown at ``factors``) from the covariance of ``fits``
+    (None when a fit has no covariance). Costs one flight of every test per factor; a test
+    the model could not fly, at its factors or moved, has a band of NaN."""
+    cov = covariance(fits)
+    if cov is None:
+        return None
+    names, C = cov
+    x0 = factors.vector(names)
+    moved = []                                  # per factor: (step, every test flown)
+    for i in range(len(names)):
+        h = STEP if x0[i] + STEP <= 1.0 else -STEP
+        x = np.array(x0, float)
+        x[i] += h
+        sim.set_factors(factors.with_vector(names, x))
+        moved.append((h, [fly_test(sim, r.test) for r in results]))
+    sim.set_factors(factors)
+    out = {}
+    for k, r in enumerate(results):
+        y0 = _channel(r)
+        cols = [_channel(m[k]) for _, m in moved]
+        if y0 is None or any(c is None or c.shape != y0.shape for c in cols):
+            out[r.test.id] = np.full(0 if y0 is None else y0.shape, math.nan)
+            continue
+        G = np.column_stack([(c - y0) / h for c, (h, _) in zip(cols, moved)])      # samples x factors
+        out[r.test.id] = np.array([Z95 * math.sqrt(max(_quadratic(g, C), 0.0)) for g in G])
+    return out

@@ -132,7 +132,7 @@ def run_variant(root: Path | str, name: str, variant: Variant, *, stages: str = 
         tr = run_trims(root, name, start=steady_factors(factors), steps=_steps_with(variant.fitted), bands=False, **kw)
         factors, poh = tr.factors, tr.poh_after
         if "flight_test_results" in geom.data_files:
-            dyn = run_dynamic(root, name, start=factors, **kw)
+            dyn = run_dynamic(root, name, start=factors, bands=False, **kw)
             factors, poh, trims = dyn.factors, dyn.poh_after, dyn.trims_after
             dynamic = {f"{r.test.id} {m.metric.name}": {"model": m.model, "measured": m.metric.measured,
                                                        "verdict": m.verdict}

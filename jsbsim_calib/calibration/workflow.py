@@ -19,19 +19,18 @@ from typing import Callable
 
 import numpy as np
 
-from .bands import Bands, prediction_bands
+from .bands import Bands, prediction_bands, response_bands
 from .closeloop import CloseLoopResult, close_loop
-from .design import COUNT, Proposal, design, records_information, results_information
 from .dynamic import DYNAMIC_STEPS, DynamicStep, dynamic_stage
 from .fit import MAX_NFEV, FitResult
 from .points import stage1_subset
 from .steady import STAGE1_STEPS, steady_stage
 from .trims import TRIM_STEPS, TrimStep, trims_stage
 from ..data.dynamic_tests import DynamicTest, aircraft_dynamic_tests
-from ..data.flighttest import QuirkWarning, load_control_travel
+from ..data.flighttest import QuirkWarning
 from ..data.load import load_dataset
 from ..data.schemas import Dataset
-from ..evaluation.evaluate_dynamic import DynamicEvaluation, evaluate_dynamic, load_recorded_tests
+from ..evaluation.evaluate_dynamic import DynamicEvaluation, evaluate_dynamic
 from ..core.errors import InputError, ModelError, Problem
 from ..core.executor import SERIAL, Executor
 from ..evaluation.evaluate import Evaluation, Summary, evaluate_dataset, summary_dict, thesis_summary
@@ -39,8 +38,6 @@ from ..factors import FactorSet, switches
 from ..jsbsim.probes import AeroCurves, aero_curves
 from ..jsbsim.product import AircraftPaths, load_aircraft_geometry, propeller_tables, read_calibration_record
 from ..jsbsim.simulator import Simulator
-from ..jsbsim.trajectory import export
-from ..synthetic.maneuvers import build_maneuver, load_plan, plan_text
 from ..physics.propeller import PropellerTables
 
 
@@ -298,6 +295,7 @@ class DynamicCalibration:
     factors: FactorSet
     wall_time_s: float
     trims: int
+    bands: dict[str, np.ndarray] | None = None    # per test: the 95 % band of its plotted response (None: not drawn)
 
     def summaries(self) -> dict[str, Summary]:
         """What the verdicts judge: the POH, the trims and the dynamic tests after the stage."""
@@ -322,9 +320,10 @@ def dynamic_tests(root: Path, name: str) -> list[DynamicTest]:
 def run_dynamic(root: Path | str, name: str, *, start: FactorSet | None = None,
                 steps: tuple[DynamicStep, ...] = DYNAMIC_STEPS,
                 progress: Callable[[str], None] | None = None, executor: Executor = SERIAL,
-                max_nfev: int | None = MAX_NFEV) -> DynamicCalibration:
+                max_nfev: int | None = MAX_NFEV, bands: bool = True) -> DynamicCalibration:
     """Stage 2b on the aircraft's dynamic tests, from ``start`` (default :func:`recorded_start`:
-    the factors stages 1 and 2a recorded, stage 2b's neutral)."""
+    the factors stages 1 and 2a recorded, stage 2b's neutral); ``bands``: also the 95 % band
+    of every test's response (one flight of the tests per fitted factor)."""
     root = Path(root)
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
@@ -347,9 +346,13 @@ def run_dynamic(root: Path | str, name: str, *, start: FactorSet | None = None,
         after = evaluate_dynamic(sim, tests, executor=executor)
         trims_after = {k: evaluate_dataset(sim, ds) for k, ds in ft.items()}
         poh_after = {k: evaluate_dataset(sim, ds) for k, ds in poh.items()}
-        trims = sim.trims
+        trims = sim.trims                       # the calibration's trims, not the bands'
+        drawn = None
+        if bands and results:
+            say("prediction bands: one flight of the dynamic tests per fitted factor")
+            drawn = response_bands(sim, final, results, after.results)
     return DynamicCalibration(name, results, tests, before, after, trims_before, trims_after, poh_after, final,
-                              time.perf_counter() - t0, trims)
+                              time.perf_counter() - t0, trims, drawn)
 
 
 # --------------------------------------------------------------------------- close the loop
@@ -378,64 +381,3 @@ def run_close_loop(root: Path | str, name: str, data: Path | str, *, skip_steps:
 def load_data_for(sim: Simulator, data: Path | str) -> Dataset:
     """A data file checked against the aircraft (its control-travel table for snapshots)."""
     return load_dataset(data, control_travel=sim.geometry.control_travel_file, geometry=sim.geometry)
-
-
-# --------------------------------------------------------------------------- experiment design
-@dataclass
-class PlanResult:
-    """``jsbsim-calib plan``: the proposal and the files written for it."""
-
-    proposal: Proposal
-    plan_file: Path
-    scripts: list[Path]
-    wall_time_s: float
-
-
-def in_hand_information(sim: Simulator, root: Path, name: str, flight_test=None) -> tuple[np.ndarray, str]:
-    """The information of the data in hand at the model's factors, and the words for them:
-    recorded time histories (``flight_test``: folders or files), else the aircraft's
-    flight-test results table and snapshots."""
-    if flight_test:
-        travel = load_control_travel(sim.geometry.control_travel_file) if sim.geometry.control_travel_file else None
-        records = load_recorded_tests(flight_test, travel)
-        return records_information(sim, records, sim.factors), f"{len(records)} recorded time histories"
-    tests = dynamic_tests(root, name)
-    geom = load_aircraft_geometry(root, name)
-    keys = tuple(k for k in FLIGHT_TEST_KINDS.values() if k in geom.data_files)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", QuirkWarning)
-        ft = {ds.kind: ds for ds in aircraft_data(root, name, keys).values()}
-    if not tests and not ft:
-        raise InputError(name, "no flight-test data in hand: give --flight-test with time histories")
-    words = f"{len(tests)} dynamic tests of the flight-test results and {sum(len(d.frame) for d in ft.values())} trims"
-    return results_information(sim, tests, ft, sim.factors), words
-
-
-def run_plan(root: Path | str, name: str, out_dir: Path | str, *, flight_test=None, base_plan: str = "level5",
-             count: int | None = None, targets: tuple[str, ...] = (),
-             progress: Callable[[str], None] | None = None) -> PlanResult:
-    """Design the next flights for the aircraft as it stands (:mod:`.design`) and write the plan
-    file (``plan.toml``, flown by ``synth --plan``) and a JSBSim script per maneuver
-    (``scripts/``, with their initialization files) into ``out_dir``."""
-    root, out_dir, t0 = Path(root), Path(out_dir), time.perf_counter()
-    say = progress or (lambda s: None)
-    base = load_plan(base_plan)
-    with Simulator(root, name) as sim:
-        say("plan: the information of the data in hand")
-        info, words = in_hand_information(sim, root, name, flight_test)
-        proposal = design(sim, base, info, words, count=count or COUNT, targets=targets, progress=say)
-        scripts_dir = out_dir / "scripts"
-        scripts_dir.mkdir(parents=True, exist_ok=True)
-        scripts = []
-        for p in proposal.picks:
-            m = build_maneuver(sim, p.scored.candidate.spec, 0.0, 0.0, np.random.default_rng(0))
-            scripts.append(export(sim, m, scripts_dir, flown=p.scored.trajectory, init_dir=scripts_dir)["script"])
-    specs = [p.scored.candidate.spec for p in proposal.picks]
-    header = (f"Proposed by jsbsim-calib plan {name}: the flights that most shrink the standard errors of "
-              f"{', '.join(proposal.targets)}.\nFly it on a truth aircraft: jsbsim-calib synth --truth AIRCRAFT "
-              f"--plan THIS_FILE --out DIR")
-    plan_file = out_dir / "plan.toml"
-    plan_file.write_text(plan_text(f"{name}_plan", f"designed for {', '.join(proposal.targets)}", specs,
-                                   sample_rate_hz=base.sample_rate_hz, timing_s=base.timing_s,
-                                   amplitude_frac=base.amplitude_frac, header=header))
-    return PlanResult(proposal, plan_file, scripts, time.perf_counter() - t0)

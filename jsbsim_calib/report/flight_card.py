@@ -16,7 +16,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from ..calibration.design import ENVELOPE, MIN_SPEED_SHARE, Pick, Proposal
+from ..synthetic.design import ENVELOPE, MIN_SPEED_SHARE, Pick, Proposal
 from ..synthetic.maneuvers import InputSpec, ManeuverSpec, file_stem_of, input_shape
 from .plots import save
 

@@ -463,8 +463,12 @@ def write_dynamic_report(result: DynamicCalibration, out_dir: Path) -> Path:
         L += ["```", r.report(), "```", ""]
     L += identifiability_section(result.steps)
     L += ["## Responses", ""]
+    if result.bands is not None:
+        L += ["The shaded band is the 95 % band of the calibrated response: the factors' covariance from the fits "
+              "above, carried through the sensitivity of the response to each fitted factor.", ""]
     for rb, ra in zip(result.dynamic_before.results, result.dynamic_after.results):
-        fig = plots.dynamic_response({"before": rb, "after": ra})
+        band = result.bands.get(ra.test.id) if result.bands is not None else None
+        fig = plots.dynamic_response({"before": rb, "after": ra}, band=band)
         png = f"dynamic_{ra.test.id.replace('.', '_')}_{ra.test.kind}.png"
         plots.save(fig, out_dir / png)
         L += [f"![{ra.test.id} {ra.test.kind}]({png})", ""]

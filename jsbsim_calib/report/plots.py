@@ -363,17 +363,24 @@ DYNAMIC_LABELS = {"q_deg_s": "pitch rate [deg/s]", "p_deg_s": "roll rate [deg/s]
                   "kcas": "KCAS [kt]"}
 
 
-def dynamic_response(results: Mapping[str, object], ax=None) -> Figure:
+def dynamic_response(results: Mapping[str, object], ax=None, band: np.ndarray | None = None) -> Figure:
     """One dynamic test flown by several models (``results``: label -> ``dynamics.TestResult``):
     the channel its metric reads over maneuver time, with the flight-test value (a line for a
-    rate the model should reach, the text for a period)."""
+    rate the model should reach, the text for a period); ``band``: the 95 % band of the last
+    model's response (same samples), shaded."""
     fig, ax = _ax(ax, (6.4, 3.6))
     first = next(iter(results.values()))
     test = first.test
     for label, r in results.items():
         if r.trajectory is not None:
-            ax.plot(r.trajectory.time_s, r.trajectory[test.channel], label=label, **_style(
-                "baseline" if label == "before" else "calibrated" if label == "after" else label))
+            style = _style("baseline" if label == "before" else "calibrated" if label == "after" else label)
+            ax.plot(r.trajectory.time_s, r.trajectory[test.channel], label=label, **style)
+    last = list(results.values())[-1]
+    if band is not None and last.trajectory is not None and band.shape == last.trajectory.time_s.shape \
+            and np.all(np.isfinite(band)):
+        y = last.trajectory[test.channel]
+        ax.fill_between(last.trajectory.time_s, y - band, y + band, color=STYLES["calibrated"]["color"], alpha=0.2,
+                        lw=0, label="95 % band")
     m = test.metrics[0]
     if test.kind != "phugoid":
         ax.axhline(m.measured, color="k", lw=1.0, ls="-.", label=f"flight test {m.measured:g} {m.unit}")

@@ -27,24 +27,30 @@ refit's own chi-square widens them by whatever the model still misses.
 from __future__ import annotations
 
 import math
+import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
+from ..calibration.dynamic import metric_residuals
+from ..calibration.fit import LEGS, FitResult, fit
+from ..calibration.points import FAIL_PENALTY, Residual, point_residuals, point_sets
+from ..calibration.workflow import FLIGHT_TEST_KINDS, aircraft_data, dynamic_tests
 from ..core import numerics
-from ..core.errors import CalibError
+from ..core.errors import CalibError, InputError
 from ..data.dynamic_tests import DynamicTest
-from ..data.flighttest import load_control_travel
+from ..data.flighttest import QuirkWarning, load_control_travel
 from ..data.schemas import Dataset
-from ..evaluation.evaluate_dynamic import CHANNEL_SCALES, RecordedTest, fly_test, recorded_test
+from ..evaluation.evaluate_dynamic import CHANNEL_SCALES, RecordedTest, fly_test, load_recorded_tests, recorded_test
 from ..factors import DYNAMIC_STEPS, FactorSet, set_in
+from ..jsbsim.product import load_aircraft_geometry
 from ..jsbsim.simulator import Simulator
-from ..jsbsim.trajectory import Maneuver, Trajectory, fly
-from ..synthetic.maneuvers import INPUT_CHANNELS, NOISE, InputSpec, ManeuverSpec, Plan, build_maneuver, fly_plan
-from .dynamic import metric_residuals
-from .fit import LEGS, FitResult, fit
-from .points import FAIL_PENALTY, Residual, point_residuals, point_sets
+from ..jsbsim.trajectory import Maneuver, Trajectory, export, fly
+from .maneuvers import (INPUT_CHANNELS, NOISE, InputSpec, ManeuverSpec, Plan, build_maneuver, fly_plan, load_plan,
+                        plan_text)
 
 DESIGN_FACTORS = set_in(DYNAMIC_STEPS)      # what time histories fit: damping, control power, stiffness
 CHANNELS = tuple(CHANNEL_SCALES)            # a record's response channels
@@ -384,3 +390,64 @@ def synthetic_records(truth: Simulator, specs: Sequence[ManeuverSpec], base: Pla
     plan = replace(base, maneuvers=tuple(specs), noise=noise)
     travel = load_control_travel(truth.geometry.control_travel_file) if truth.geometry.control_travel_file else None
     return [recorded_test(th, travel) for th in fly_plan(truth, plan, seed=seed, noise=1.0)]
+
+
+# --------------------------------------------------------------------------- the command
+@dataclass
+class PlanResult:
+    """``jsbsim-calib plan``: the proposal and the files written for it."""
+
+    proposal: Proposal
+    plan_file: Path
+    scripts: list[Path]
+    wall_time_s: float
+
+
+def in_hand_information(sim: Simulator, root: Path, name: str, flight_test=None) -> tuple[np.ndarray, str]:
+    """The information of the data in hand at the model's factors, and the words for them:
+    recorded time histories (``flight_test``: folders or files), else the aircraft's
+    flight-test results table and snapshots."""
+    if flight_test:
+        travel = load_control_travel(sim.geometry.control_travel_file) if sim.geometry.control_travel_file else None
+        records = load_recorded_tests(flight_test, travel)
+        return records_information(sim, records, sim.factors), f"{len(records)} recorded time histories"
+    tests = dynamic_tests(root, name)
+    geom = load_aircraft_geometry(root, name)
+    keys = tuple(k for k in FLIGHT_TEST_KINDS.values() if k in geom.data_files)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", QuirkWarning)
+        ft = {ds.kind: ds for ds in aircraft_data(root, name, keys).values()}
+    if not tests and not ft:
+        raise InputError(name, "no flight-test data in hand: give --flight-test with time histories")
+    words = f"{len(tests)} dynamic tests of the flight-test results and {sum(len(d.frame) for d in ft.values())} trims"
+    return results_information(sim, tests, ft, sim.factors), words
+
+
+def run_plan(root: Path | str, name: str, out_dir: Path | str, *, flight_test=None, base_plan: str = "level5",
+             count: int | None = None, targets: tuple[str, ...] = (),
+             progress: Callable[[str], None] | None = None) -> PlanResult:
+    """Design the next flights for the aircraft as it stands (:mod:`.design`) and write the plan
+    file (``plan.toml``, flown by ``synth --plan``) and a JSBSim script per maneuver
+    (``scripts/``, with their initialization files) into ``out_dir``."""
+    root, out_dir, t0 = Path(root), Path(out_dir), time.perf_counter()
+    say = progress or (lambda s: None)
+    base = load_plan(base_plan)
+    with Simulator(root, name) as sim:
+        say("plan: the information of the data in hand")
+        info, words = in_hand_information(sim, root, name, flight_test)
+        proposal = design(sim, base, info, words, count=count or COUNT, targets=targets, progress=say)
+        scripts_dir = out_dir / "scripts"
+        scripts_dir.mkdir(parents=True, exist_ok=True)
+        scripts = []
+        for p in proposal.picks:
+            m = build_maneuver(sim, p.scored.candidate.spec, 0.0, 0.0, np.random.default_rng(0))
+            scripts.append(export(sim, m, scripts_dir, flown=p.scored.trajectory, init_dir=scripts_dir)["script"])
+    specs = [p.scored.candidate.spec for p in proposal.picks]
+    header = (f"Proposed by jsbsim-calib plan {name}: the flights that most shrink the standard errors of "
+              f"{', '.join(proposal.targets)}.\nFly it on a truth aircraft: jsbsim-calib synth --truth AIRCRAFT "
+              f"--plan THIS_FILE --out DIR")
+    plan_file = out_dir / "plan.toml"
+    plan_file.write_text(plan_text(f"{name}_plan", f"designed for {', '.join(proposal.targets)}", specs,
+                                   sample_rate_hz=base.sample_rate_hz, timing_s=base.timing_s,
+                                   amplitude_frac=base.amplitude_frac, header=header))
+    return PlanResult(proposal, plan_file, scripts, time.perf_counter() - t0)
