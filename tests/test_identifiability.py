@@ -128,3 +128,23 @@ def test_a_share_within_tolerance_gets_the_range_its_bands_allow():
     assert holds(90.0, 100.0, within_95.met_by) == "band across" and holds(96.0, 100.0, within_95.met_by) == "band inside"
     assert holds(25.0, 75.0, within_95.met_by) == "band inside"           # a sure FAIL
     assert holds(float("nan"), 100.0, within_95.met_by) == "no band"    # a share without a band is never confident
+
+
+@pytest.mark.slow
+def test_the_95_percent_bands_cover_the_truth_in_90_to_98_percent_of_50_campaigns(repo, tmp_path):
+    """Issue 28: 50 synthetic snapshot campaigns of a truth C172 (elevator gearing and offset
+    moved), each refitted by the committed model and its bands drawn. Measured: 97.1 % of 795
+    rows, 47 of 50 campaigns with every row covered, the factors' intervals 48 and 49 of 50
+    (before the reduced chi-square left out the rows no factor moves: 87 %, 33, 39 and 41)."""
+    import warnings
+
+    from jsbsim_calib.synthetic.coverage import campaigns
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        runs = campaigns(repo, "c172", {"K_de_slope": 1.25, "K_de_offset": -1.0}, range(50), tmp_path)
+    whole = sum(bool(c.covered.all()) for c in runs)
+    assert 45 <= whole <= 49, whole                      # 90-98 % of the campaigns
+    for n in ("K_de_slope", "K_de_offset"):
+        assert 45 <= sum(c.inside[n] for c in runs) <= 49, n
+    rows = np.concatenate([c.covered for c in runs])
+    assert 0.90 <= rows.mean() <= 0.99 and rows.size > 700

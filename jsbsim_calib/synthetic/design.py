@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration.dynamic import metric_residuals
-from ..calibration.fit import LEGS, FitResult, fit
+from ..calibration.fit import LEGS, FitResult, data_rows, fit
 from ..calibration.points import FAIL_PENALTY, Residual, point_residuals, point_sets
 from ..calibration.workflow import FLIGHT_TEST_KINDS, aircraft_data, dynamic_tests
 from ..core import numerics
@@ -162,7 +162,8 @@ def results_information(sim: Simulator, tests: Sequence[DynamicTest], data: dict
                         names: Sequence[str] = DESIGN_FACTORS) -> np.ndarray:
     """The information of a flight-test results table as stage 2b fits it: the metrics that do
     not depend on an assumed input amplitude and the snapshot trims, over their tolerances,
-    scaled by the reduced chi-square at ``factors``."""
+    scaled by the reduced chi-square of the measurements at ``factors`` (as a fit's standard
+    errors are: :func:`~jsbsim_calib.calibration.fit.data_rows`)."""
     sim.set_factors(factors)
     sets = point_sets(sim, data, SNAPSHOT_TRIMS)
 
@@ -183,7 +184,8 @@ def results_information(sim: Simulator, tests: Sequence[DynamicTest], data: dict
         cols.append((residuals(fs) - r0) / h)
     sim.set_factors(factors)
     jac = np.column_stack(cols)
-    chi2 = numerics.sum_sq(r0) / max(1, len(r0) - len(names))
+    rows = data_rows(jac, [""] * len(r0))
+    chi2 = numerics.sum_sq(r0[rows]) / max(1, int(np.count_nonzero(rows)) - len(names))
     return numerics.gram(jac) / max(chi2, 1e-12)
 
 
