@@ -41,9 +41,9 @@ def input_words(i: InputSpec) -> str:
     way = SIGN_WORDS[i.channel][0 if i.amplitude >= 0 else 1]
     amp = f"{abs(i.amplitude):g}{_unit(i.channel)} {way}"
     if i.shape == "multisine":
-        timing = (f"for {i.length_s:g} s from t = {i.start_s:g} s, frequencies {i.band_hz[0]:g}-{i.band_hz[1]:g} Hz, "
-                  f"peak {abs(i.amplitude):g}{_unit(i.channel)} (follow the drawn trace; a flight-test input "
-                  "box plays it best)")
+        amp = f"peak {abs(i.amplitude):g}{_unit(i.channel)} either way"
+        timing = (f"for {i.length_s:g} s from t = {i.start_s:g} s, frequencies {i.band_hz[0]:g}-{i.band_hz[1]:g} Hz "
+                  "(follow the drawn trace; a flight-test input box plays it best)")
     elif i.shape == "3211":
         timing = (f"at t = {i.start_s:g} s: steps of 3, 2, 1 and 1 units of {i.length_s:g} s, alternating "
                   "direction, starting as stated")
@@ -59,7 +59,8 @@ def input_words(i: InputSpec) -> str:
 def _conditions(m: ManeuverSpec) -> list[tuple[str, str]]:
     c = m.start
     speed = f"{c.kcas:g} KCAS" if c.kcas is not None else f"{c.ktas:g} KTAS"
-    power = f"throttle {c.throttle:g}, path free" if c.mode == "full_throttle" else "as needed for level flight"
+    power = f"throttle {c.throttle:g}, path free" if c.mode == "full_throttle" else \
+        "trimmed for level flight, then the throttle left where it is"
     rows = [("pressure altitude", f"{c.pressure_alt_ft:,.0f} ft"), ("airspeed", speed), ("flaps", f"{c.flaps_deg:g} deg"),
             ("weight", f"{c.weight_lb:,.0f} lb"), ("CG", f"{c.cg_in:g} in aft of datum"), ("power", power),
             ("mixture", str(c.mixture))]
