@@ -8,9 +8,11 @@ lies within the band and whether each factor's interval holds its true value; th
 and per block of the campaigns the truth's own error against its noisy data (a block whose mean
 is not zero would be a bias no band accounts for).
 
-    python benchmarks/band_coverage.py [--campaigns 50] [--points 16] [--prior 0.1]
+    python benchmarks/band_coverage.py [--campaigns 50] [--points 16] [--prior 0.1] [--bootstrap 40]
 
-About 1.5 s a campaign on one core.
+About 1.5 s a campaign on one core. ``--bootstrap N`` then checks the linearization on the
+first campaign: N refits to its fitted values plus its residuals drawn with replacement; the
+spread of their estimates against the fit's standard errors (issue 28's check of the bands).
 """
 from __future__ import annotations
 
@@ -25,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from jsbsim_calib.calibration.trims import STEP_PRIOR
-from jsbsim_calib.synthetic.coverage import campaigns
+from jsbsim_calib.jsbsim.simulator import Simulator
+from jsbsim_calib.synthetic.coverage import bootstrap, campaigns
 
 ROOT = Path(__file__).resolve().parents[1]
 TRUTH = {"K_de_slope": 1.25, "K_de_offset": -1.0}
@@ -36,6 +39,7 @@ def main() -> None:
     ap.add_argument("--campaigns", type=int, default=50)
     ap.add_argument("--points", type=int, default=16)
     ap.add_argument("--prior", type=float, default=STEP_PRIOR)
+    ap.add_argument("--bootstrap", type=int, default=0, help="resamples of the residual bootstrap (0: none)")
     a = ap.parse_args()
     warnings.simplefilter("ignore")
     t0 = time.perf_counter()
@@ -58,6 +62,17 @@ def main() -> None:
         e = np.array([x for x in e if math.isfinite(x)])
         print(f"  {b:<28} n {e.size:4d}  mean {e.mean():+.3f}  sd {e.std():.3f}  "
               f"mean/SE {e.mean() / (e.std() / math.sqrt(e.size)):+.1f}")
+    if a.bootstrap:
+        t1 = time.perf_counter()
+        with tempfile.TemporaryDirectory() as tmp, Simulator(ROOT, "c172") as model, Simulator(ROOT, "c172") as truth:
+            start = model.factors
+            truth.set_factors(start.with_vector(list(TRUTH), list(TRUTH.values()), normalized=False))
+            se, spread = bootstrap(model, truth, start, TRUTH, 0, Path(tmp), resamples=a.bootstrap, points=a.points,
+                                   prior=a.prior)
+        print(f"\nresidual bootstrap of campaign 0, {a.bootstrap} refits ({time.perf_counter() - t1:.0f} s):")
+        for n in TRUTH:
+            print(f"  {n}: linearized standard error {se[n]:.4g}, bootstrap {spread[n]:.4g} "
+                  f"(ratio {spread[n] / se[n]:.2f})")
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ the true value.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -23,6 +23,7 @@ from ..calibration.fit import Z95, fit
 from ..calibration.points import PointSet, point_residuals
 from ..calibration.trims import STEP_PRIOR
 from ..data.load import load_dataset
+from ..data.schemas import Dataset
 from ..evaluation.evaluate import evaluate_dataset
 from ..factors import FactorSet
 from ..jsbsim.simulator import Simulator
@@ -42,14 +43,14 @@ def _values(sim: Simulator, ds, metric: str) -> np.ndarray:
     return np.array([p.model.get(metric, math.nan) for p in evaluate_dataset(sim, ds).points])
 
 
-def campaign(model: Simulator, truth: Simulator, start: FactorSet, true: Mapping[str, float], seed: int,
-             folder: Path, *, metric: str = "elevator_deg", points: int = 16, prior: float = STEP_PRIOR) -> Campaign:
-    """One campaign: ``truth`` (flying the ``true`` factor values) synthesizes it, ``model``
-    refits ``true``'s factors to ``metric`` from ``start`` and draws the bands."""
+def _synthesized(truth: Simulator, seed: int, folder: Path, points: int):
     rows, _ = synthesize(truth, n=points, seed=seed, noise=1.0)
     path = Path(folder) / f"campaign_{seed}.csv"
     write_csv(rows, path)
-    ds = load_dataset(path)
+    return rows, load_dataset(path)
+
+
+def _refit(model: Simulator, ds: Dataset, start: FactorSet, names: Sequence[str], metric: str, prior: float):
     model.set_factors(start)
     ps = PointSet.from_dataset(ds, model, metrics=(metric,))
 
@@ -58,7 +59,15 @@ def campaign(model: Simulator, truth: Simulator, start: FactorSet, true: Mapping
         r, lab, _ = point_residuals(model, ps, (metric,))
         return np.array(r), lab
 
-    res = fit("coverage", list(true), start, residuals, sim=model, prior=prior, legs=LEGS)
+    return fit("coverage", list(names), start, residuals, sim=model, prior=prior, legs=LEGS)
+
+
+def campaign(model: Simulator, truth: Simulator, start: FactorSet, true: Mapping[str, float], seed: int,
+             folder: Path, *, metric: str = "elevator_deg", points: int = 16, prior: float = STEP_PRIOR) -> Campaign:
+    """One campaign: ``truth`` (flying the ``true`` factor values) synthesizes it, ``model``
+    refits ``true``'s factors to ``metric`` from ``start`` and draws the bands."""
+    rows, ds = _synthesized(truth, seed, folder, points)
+    res = _refit(model, ds, start, list(true), metric, prior)
     model.set_factors(res.final)
     bands = prediction_bands(model, res.final, [res], {ds.kind: evaluate_dataset(model, ds)})
     pred, truth_values = _values(model, ds, metric), _values(truth, ds, metric)
@@ -78,3 +87,31 @@ def campaigns(root: Path, name: str, true: Mapping[str, float], seeds: Sequence[
         start = model.factors
         truth.set_factors(start.with_vector(list(true), list(true.values()), normalized=False))
         return [campaign(model, truth, start, true, s, folder, **kw) for s in seeds]
+
+
+def bootstrap(model: Simulator, truth: Simulator, start: FactorSet, true: Mapping[str, float], seed: int,
+              folder: Path, *, resamples: int = 40, metric: str = "elevator_deg", points: int = 16,
+              prior: float = STEP_PRIOR) -> tuple[dict[str, float], dict[str, float]]:
+    """The check of the linearized standard errors by a bootstrap of the fit's residuals: one
+    campaign refitted, then ``resamples`` times again on its fitted values plus its residuals
+    drawn with replacement (centred, scaled by sqrt(n / (n - p))). Returns the fit's standard
+    errors and the bootstrap's standard deviations of the estimates."""
+    _, ds = _synthesized(truth, seed, folder, points)
+    names = list(true)
+    res = _refit(model, ds, start, names, metric, prior)
+    model.set_factors(res.final)
+    fitted = _values(model, ds, metric)
+    data = ds.frame[metric].to_numpy(float)
+    ok = np.isfinite(fitted) & np.isfinite(data)
+    e = (data - fitted)[ok]
+    e = (e - e.mean()) * math.sqrt(e.size / max(1, e.size - len(names)))
+    rng = np.random.default_rng([seed, 11])
+    estimates = []
+    for _ in range(resamples):
+        frame = ds.frame.copy()
+        values = np.array(fitted)
+        values[ok] = fitted[ok] + rng.choice(e, e.size, replace=True)
+        frame.loc[ok, metric] = values[ok]
+        estimates.append(_refit(model, replace(ds, frame=frame), res.final, names, metric, prior).final.vector(names, normalized=False))
+    spread = np.std(np.array(estimates), axis=0, ddof=1)
+    return {n: res.stderr.get(n) for n in names}, dict(zip(names, spread.tolist()))
