@@ -44,7 +44,8 @@ def _interrupted_loading(signum, frame):
 
 # Ctrl-C while the command loads (seconds on a busy machine): one line, exit 130 (main() then
 # turns it into KeyboardInterrupt); a pool worker that loads this module as its main ignores it
-if __name__ == "__main__" or Path(sys.argv[0]).name == "jsbsim-calib":
+ENTRY = __name__ == "__main__" or Path(sys.argv[0]).name == "jsbsim-calib"     # this process is the command
+if ENTRY:
     signal.signal(signal.SIGINT, _interrupted_loading)
 elif __name__ == "__mp_main__":
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -893,6 +894,15 @@ def _terminate(signum, frame):
 
 
 def main(argv=None) -> int:
+    code = _main_logged(argv)
+    if ENTRY and threading.current_thread() is threading.main_thread():
+        # the command is over (written, or nothing written): a Ctrl-C while the interpreter shuts
+        # down would only turn its exit code into a death by signal, or print a traceback
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return code
+
+
+def _main_logged(argv) -> int:
     warnings.showwarning = _show_warning
     args = build_parser().parse_args(argv)
     args.console = sys.stderr            # the progress display's stream (not the --log-file copy)
