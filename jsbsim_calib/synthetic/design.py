@@ -17,12 +17,16 @@ Design. The candidates are the Part 60 catalogue's dynamic tests of a base plan 
 Level 5 one) at new conditions (speeds and flaps around the plan's) and designed inputs on
 each surface: a doublet, a 3-2-1-1 and a multisine of bounded amplitude
 (:data:`DESIGNED`). A candidate whose predicted flight leaves :data:`ENVELOPE` is dropped
-with the limit it broke. The plan is built greedily: each pick is the candidate that most
+with the limit it broke, and so is one whose noise-free record the replay cannot follow to
+within :data:`REPLAY_LIMIT` sensor sigmas (:func:`replay_error`); the replay error of the
+others counts as noise (:func:`usable_information`). The plan is built greedily: each pick is the candidate that most
 lowers the sum of the log variances of the target factors (the loosest ones in hand, D-
 optimal on their block), given the data in hand and the picks before it.
 
 The predicted standard errors assume the new records are explained to their sensor noise; a
-refit's own chi-square widens them by whatever the model still misses.
+refit's own chi-square widens them by whatever the model still misses. :func:`refit` and
+:func:`combined_errors` are that check on a truth aircraft (``benchmarks/plan_design.py``);
+:func:`run_plan` is the command: the design, its plan file and its JSBSim scripts.
 """
 from __future__ import annotations
 
