@@ -118,3 +118,20 @@ def test_ctrl_c_at_a_random_moment_leaves_the_old_or_the_new_product(k, root, tm
     check = subprocess.run([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(root), "--quiet", "--executor",
                             "serial", "check", "c172"], capture_output=True, text=True, env=ENV, timeout=120)
     assert check.returncode == 0, check.stderr
+
+
+def test_a_ctrl_c_after_the_command_is_over_changes_nothing(root):
+    """The race CI once lost: a SIGINT landing while the interpreter shuts down, after the
+    command is over, made the exit a death by signal (-2). Here the command (``check``) runs as
+    the process's own command line, then the process sends itself SIGINT while exiting: the
+    exit code stays the command's."""
+    code = ("import os, signal, sys; sys.argv[0] = 'jsbsim-calib'\n"
+            "import jsbsim_calib.cli as cli\n"
+            f"code = cli.main(['--root', {str(root)!r}, '--quiet', 'check', 'c172'])\n"
+            "assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN, signal.getsignal(signal.SIGINT)\n"
+            "os.kill(os.getpid(), signal.SIGINT)\n"
+            "sys.exit(code)\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=ENV, timeout=120,
+                       check=False)
+    assert p.returncode == 0, (p.returncode, p.stderr[-2000:])
+    assert "Traceback" not in p.stderr
