@@ -30,7 +30,7 @@ from ..evaluation.evaluate_dynamic import AXIS_CHANNELS, RecordedTest, fly_test
 from ..jsbsim.trajectory import fly
 from ..factors import FactorSet, step_factors
 from ..jsbsim.simulator import Simulator
-from .fit import LEGS, MAX_NFEV, FitResult, fit, unfitted
+from .fit import LEGS, MAX_NFEV, FitResult, fit, sensitivity, unfitted
 from .points import FAIL_PENALTY, HOLD_TOL_SCALE, Residual, held_sets, point_residuals, point_sets
 from .trims import POH_HOLD, STEP_PRIOR
 
@@ -169,19 +169,6 @@ def _residual_function(sim: Simulator, tests: Sequence, sets, held, step_name: s
     return residuals, amp_mask
 
 
-def _sensitivity(residuals, start: FactorSet, names: Sequence[str], step: float = 0.05) -> np.ndarray:
-    """Forward-difference Jacobian in normalized factor units at ``start``."""
-    r0, _ = residuals(start)
-    x0 = start.vector(names)
-    cols = []
-    for i in range(len(names)):
-        x = np.array(x0)
-        x[i] += step if x[i] + step <= 1 else -step
-        r1, _ = residuals(start.with_vector(names, x))
-        cols.append((r1 - r0) / (x[i] - x0[i]))
-    return np.column_stack(cols)
-
-
 def dynamic_step(sim: Simulator, step: DynamicStep, tests: Sequence[DynamicTest | RecordedTest],
                  data: dict[str, Dataset],
                  start: FactorSet, *, progress: Callable[[str], None] | None = None,
@@ -195,7 +182,7 @@ def dynamic_step(sim: Simulator, step: DynamicStep, tests: Sequence[DynamicTest 
     held = held_sets(sim, data, step.hold)
     residuals, amp_mask = _residual_function(sim, mine, sets, held, step.name)
     names = list(step.factors)
-    jac = _sensitivity(residuals, start, names)
+    jac = sensitivity(residuals, start, names)
     keep, drop = identified_by(jac, np.array(amp_mask), names)
     if keep:
         out = fit(step.name, keep, start, residuals, sim=sim, progress=progress, max_nfev=max_nfev,

@@ -188,6 +188,20 @@ def _stderr(jac: np.ndarray, names: list[str], residuals: np.ndarray, space: Fac
     return out, corr, cov
 
 
+def sensitivity(residuals, start: FactorSet, names: Sequence[str], step: float = 0.05) -> np.ndarray:
+    """Forward-difference Jacobian in normalized factor units at ``start`` (inwards at a bound)
+    of ``residuals``: factors -> (residuals, labels)."""
+    r0, _ = residuals(start)
+    x0 = start.vector(names)
+    cols = []
+    for i in range(len(names)):
+        x = np.array(x0)
+        x[i] += step if x[i] + step <= 1 else -step
+        r1, _ = residuals(start.with_vector(names, x))
+        cols.append((r1 - r0) / (x[i] - x0[i]))
+    return np.column_stack(cols)
+
+
 def residual_group(label: str) -> str:
     """The data a residual belongs to: its label without the row ("poh_climb[3].roc_fpm" ->
     "poh_climb.roc_fpm"; a maneuver's metric stays as it is; the prior's rows: "prior")."""

@@ -40,21 +40,21 @@ from pathlib import Path
 import numpy as np
 
 from ..calibration.dynamic import metric_residuals
-from ..calibration.fit import LEGS, FitResult, data_rows, fit
+from ..calibration.fit import LEGS, FitResult, data_rows, fit, sensitivity
 from ..calibration.points import FAIL_PENALTY, Residual, point_residuals, point_sets
 from ..calibration.workflow import FLIGHT_TEST_KINDS, aircraft_data, dynamic_tests
 from ..core import numerics
 from ..core.errors import CalibError, InputError
 from ..data.dynamic_tests import DynamicTest
-from ..data.flighttest import QuirkWarning, load_control_travel
+from ..data.flighttest import QuirkWarning
 from ..data.schemas import Dataset
 from ..evaluation.evaluate_dynamic import CHANNEL_SCALES, RecordedTest, fly_test, load_recorded_tests, recorded_test
 from ..factors import DYNAMIC_STEPS, FactorSet, set_in
 from ..jsbsim.product import load_aircraft_geometry
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.trajectory import Maneuver, Trajectory, export, fly
-from .maneuvers import (INPUT_CHANNELS, NOISE, InputSpec, ManeuverSpec, Plan, build_maneuver, fly_plan, load_plan,
-                        plan_text)
+from .maneuvers import (INPUT_CHANNELS, NOISE, InputSpec, ManeuverSpec, Plan, build_maneuver, control_travel,
+                        fly_plan, load_plan, plan_text, record_flight, sensor_errors)
 
 DESIGN_FACTORS = set_in(DYNAMIC_STEPS)      # what time histories fit: damping, control power, stiffness
 CHANNELS = tuple(CHANNEL_SCALES)            # a record's response channels
@@ -124,28 +124,20 @@ def _samples(traj: Trajectory, duration_s: float) -> np.ndarray:
     return np.concatenate([at[c] * w[c] for c in CHANNELS])
 
 
-def _perturbed(factors: FactorSet, names: Sequence[str], j: int) -> tuple[FactorSet, float]:
-    x = factors.vector(names)
-    h = STEP if x[j] + STEP <= 1.0 else -STEP
-    x = np.array(x, float)
-    x[j] += h
-    return factors.with_vector(names, x), h
-
-
 def record_sensitivity(sim: Simulator, maneuver: Maneuver, factors: FactorSet,
                        names: Sequence[str]) -> tuple[np.ndarray, Trajectory]:
     """The weighted samples' sensitivity to each factor (columns, normalized units) of a
     maneuver flown by the model, and its flight at ``factors``. Leaves the model at ``factors``."""
-    sim.set_factors(factors)
-    base = fly(sim, maneuver)
-    y0 = _samples(base, maneuver.duration_s)
-    cols = []
-    for j in range(len(names)):
-        fs, h = _perturbed(factors, names, j)
+    flown = []
+
+    def samples(fs: FactorSet):
         sim.set_factors(fs)
-        cols.append((_samples(fly(sim, maneuver), maneuver.duration_s) - y0) / h)
+        flown.append(fly(sim, maneuver))
+        return _samples(flown[-1], maneuver.duration_s), []
+
+    jac = sensitivity(samples, factors, names, STEP)
     sim.set_factors(factors)
-    return np.column_stack(cols), base
+    return jac, flown[0]
 
 
 def records_information(sim: Simulator, tests: Sequence[RecordedTest], factors: FactorSet,
@@ -171,7 +163,9 @@ def results_information(sim: Simulator, tests: Sequence[DynamicTest], data: dict
     sim.set_factors(factors)
     sets = point_sets(sim, data, SNAPSHOT_TRIMS)
 
-    def residuals(fs: FactorSet) -> np.ndarray:
+    evaluated = []                              # the first: at ``factors``
+
+    def residuals(fs: FactorSet):
         sim.set_factors(fs)
         out = []
         for test in tests:
@@ -179,15 +173,12 @@ def results_information(sim: Simulator, tests: Sequence[DynamicTest], data: dict
             out += [x for x, a in zip(r, amp) if not a]
         for ps in sets:
             out += point_residuals(sim, ps, ps.metrics)[0]
-        return np.array(out, float)
+        evaluated.append(np.array(out, float))
+        return evaluated[-1], []
 
-    r0 = residuals(factors)
-    cols = []
-    for j in range(len(names)):
-        fs, h = _perturbed(factors, names, j)
-        cols.append((residuals(fs) - r0) / h)
+    jac = sensitivity(residuals, factors, names, STEP)
     sim.set_factors(factors)
-    jac = np.column_stack(cols)
+    r0 = evaluated[0]
     rows = data_rows(jac, [""] * len(r0))
     chi2 = numerics.sum_sq(r0[rows]) / max(1, int(np.count_nonzero(rows)) - len(names))
     return numerics.gram(jac) / max(chi2, 1e-12)
@@ -272,12 +263,12 @@ def outside_envelope(traj: Trajectory) -> str:
     return ""
 
 
-def replay_error(sim: Simulator, spec: ManeuverSpec, base: Plan) -> float:
-    """How far the replay of a noise-free record of the maneuver departs from it (RMS, in
-    sensor sigmas): a record a fit cannot replay faithfully carries no usable information."""
-    plan = replace(base, maneuvers=(spec,), timing_s=0.0, amplitude_frac=0.0)
-    travel = load_control_travel(sim.geometry.control_travel_file) if sim.geometry.control_travel_file else None
-    rec = replace(recorded_test(fly_plan(sim, plan, noise=0.0)[0], travel), weights=record_weights())
+def replay_error(sim: Simulator, spec: ManeuverSpec, base: Plan, flown: Trajectory) -> float:
+    """How far the replay of a noise-free record of the maneuver as ``flown`` departs from it
+    (RMS, in sensor sigmas): a record a fit cannot replay faithfully carries no usable information."""
+    travel = control_travel(sim)
+    th = record_flight(sim.name, spec, base, flown, travel, 0.0, sensor_errors(base, 0.0, 0), np.random.default_rng(0))
+    rec = replace(recorded_test(th, travel), weights=record_weights())
     r, _ = rec.residuals(fly(sim, rec.maneuver), CHANNELS)
     return math.sqrt(numerics.sum_sq(r) / max(1, len(r)))
 
@@ -289,7 +280,7 @@ def usable_information(sim: Simulator, spec: ManeuverSpec, base: Plan, factors: 
     the information by ``1 + e^2``."""
     m = build_maneuver(sim, spec, 0.0, 0.0, np.random.default_rng(0))     # no pilot scatter in a design flight
     jac, traj = record_sensitivity(sim, m, factors, names)
-    e = replay_error(sim, spec, base)
+    e = replay_error(sim, spec, base, traj)
     return numerics.gram(jac) / (1.0 + e * e), traj, e
 
 
@@ -394,7 +385,7 @@ def synthetic_records(truth: Simulator, specs: Sequence[ManeuverSpec], base: Pla
     estimate; neither is what a design is judged by."""
     noise = {c: (0.0 if c in INPUT_CHANNELS or c in COCKPIT_CHANNELS else s, 0.0) for c, (s, _) in base.noise.items()}
     plan = replace(base, maneuvers=tuple(specs), noise=noise)
-    travel = load_control_travel(truth.geometry.control_travel_file) if truth.geometry.control_travel_file else None
+    travel = control_travel(truth)
     return [recorded_test(th, travel) for th in fly_plan(truth, plan, seed=seed, noise=1.0)]
 
 
@@ -414,8 +405,7 @@ def in_hand_information(sim: Simulator, root: Path, name: str, flight_test=None)
     recorded time histories (``flight_test``: folders or files), else the aircraft's
     flight-test results table and snapshots."""
     if flight_test:
-        travel = load_control_travel(sim.geometry.control_travel_file) if sim.geometry.control_travel_file else None
-        records = load_recorded_tests(flight_test, travel)
+        records = load_recorded_tests(flight_test, control_travel(sim))
         return records_information(sim, records, sim.factors), f"{len(records)} recorded time histories"
     tests = dynamic_tests(root, name)
     geom = load_aircraft_geometry(root, name)
