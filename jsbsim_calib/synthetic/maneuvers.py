@@ -511,22 +511,33 @@ def meta_of(spec: ManeuverSpec, plan: Plan, truth: str, channels: Sequence[str],
 
 
 # --------------------------------------------------------------------------- flying the plan
+def control_travel(sim):
+    """The aircraft's control-travel table (cockpit controls to surfaces), None without one."""
+    path = sim.geometry.control_travel_file
+    return load_control_travel(path) if path else None
+
+
+def record_flight(sim_name: str, spec: ManeuverSpec, plan: Plan, traj, travel, noise: float,
+                  errors: Mapping[str, SensorError], rng) -> TimeHistory:
+    """A maneuver of the plan as flown (``traj``) recorded as format 1: every recorded channel
+    (cockpit controls too, with ``travel``) at the plan's rate, with the sensor ``errors``."""
+    channels = [c for c in CHANNELS if c in RECORD or c == "time_s"]
+    channels += [c for c in ("column_in", "wheel_deg", "pedal_in") if travel]
+    meta = meta_of(spec, plan, sim_name, channels, noise, traj.maneuver.holds)
+    return trajectory_to_time_history(traj, meta, plan.sample_rate_hz, travel, errors, rng)
+
+
 def fly_plan(sim, plan: Plan, *, seed: int = 0, noise: float = 1.0,
              progress: Callable[[str], None] | None = None) -> list[TimeHistory]:
     """Fly every maneuver of the plan on the truth and record it as format 1."""
     check_settings(seed, noise)
-    travel = load_control_travel(sim.geometry.control_travel_file) if sim.geometry.control_travel_file else None
+    travel = control_travel(sim)
     errors = sensor_errors(plan, noise, seed)
     out = []
     for k, spec in enumerate(plan.maneuvers):
         m = build_maneuver(sim, spec, plan.timing_s, plan.amplitude_frac, np.random.default_rng([seed, 2, k]))
-        traj = fly(sim, m)
-        channels = [c for c in CHANNELS if c in RECORD or c == "time_s"]
-        channels += [c for c in ("column_in", "wheel_deg", "pedal_in") if travel]
-        meta = meta_of(spec, plan, sim.name, channels, noise, m.holds)
-        th = trajectory_to_time_history(traj, meta, plan.sample_rate_hz, travel, errors,
-                                        np.random.default_rng([seed, 3, k]))
-        out.append(th)
+        out.append(record_flight(sim.name, spec, plan, fly(sim, m), travel, noise, errors,
+                                 np.random.default_rng([seed, 3, k])))
         if progress:
             progress(f"synth: {k + 1}/{len(plan.maneuvers)} {spec.id} {spec.kind}")
     return out
