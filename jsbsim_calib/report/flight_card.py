@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import math
 from pathlib import Path
 
@@ -206,12 +205,9 @@ def write_flight_card(proposal: Proposal, out_dir: Path | str) -> dict[str, Path
     names, pngs = {}, {}
     for p in proposal.picks:
         m = p.scored.candidate.spec
-        fig = maneuver_figure(p)
         names[m.id] = f"flight_card_{file_stem_of(m)}.png"
-        save(fig, out_dir / names[m.id])
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png")
-        pngs[m.id] = buf.getvalue()
+        save(maneuver_figure(p), out_dir / names[m.id])
+        pngs[m.id] = (out_dir / names[m.id]).read_bytes()
     md, page = out_dir / "flight_card.md", out_dir / "flight_card.html"
     md.write_text(markdown(proposal, names))
     page.write_text(html_page(proposal, pngs))

@@ -39,8 +39,8 @@ class Campaign:
     truth_errors: list[tuple[str, float]]  # per row: (block, the truth's own value - its noisy datum)
 
 
-def _values(sim: Simulator, ds, metric: str) -> np.ndarray:
-    return np.array([p.model.get(metric, math.nan) for p in evaluate_dataset(sim, ds).points])
+def _values(evaluation, metric: str) -> np.ndarray:
+    return np.array([p.model.get(metric, math.nan) for p in evaluation.points])
 
 
 def _synthesized(truth: Simulator, seed: int, folder: Path, points: int):
@@ -69,8 +69,9 @@ def campaign(model: Simulator, truth: Simulator, start: FactorSet, true: Mapping
     rows, ds = _synthesized(truth, seed, folder, points)
     res = _refit(model, ds, start, list(true), metric, prior)
     model.set_factors(res.final)
-    bands = prediction_bands(model, res.final, [res], {ds.kind: evaluate_dataset(model, ds)})
-    pred, truth_values = _values(model, ds, metric), _values(truth, ds, metric)
+    fitted = evaluate_dataset(model, ds)
+    bands = prediction_bands(model, res.final, [res], {ds.kind: fitted})
+    pred, truth_values = _values(fitted, metric), _values(evaluate_dataset(truth, ds), metric)
     band = bands.rows[ds.kind][metric] if bands is not None else np.full(len(pred), math.nan)
     covered = np.abs(pred - truth_values) <= band             # NaN: not covered
     se = {n: res.stderr.get(n) for n in true}
@@ -100,7 +101,7 @@ def bootstrap(model: Simulator, truth: Simulator, start: FactorSet, true: Mappin
     names = list(true)
     res = _refit(model, ds, start, names, metric, prior)
     model.set_factors(res.final)
-    fitted = _values(model, ds, metric)
+    fitted = _values(evaluate_dataset(model, ds), metric)
     data = ds.frame[metric].to_numpy(float)
     ok = np.isfinite(fitted) & np.isfinite(data)
     e = (data - fitted)[ok]
