@@ -214,8 +214,9 @@ def _information(jac: np.ndarray | None, labels: list[str], names: list[str]) ->
     which data determine it."""
     if jac is None or jac.shape != (len(labels), len(names)):
         return {}
-    groups = [residual_group(lab) for lab in labels]
-    rows = {g: [k for k, h in enumerate(groups) if h == g] for g in dict.fromkeys(groups)}
+    rows: dict[str, list[int]] = {}
+    for k, lab in enumerate(labels):                  # one pass: a time history has a group per sample
+        rows.setdefault(residual_group(lab), []).append(k)
     out = {}
     for i, n in enumerate(names):
         total = numerics.sum_sq(jac[:, i])
