@@ -411,8 +411,9 @@ def best_out_of_sample(ev: Evidence, tried: list[Candidate], current: Simulator,
                        factors: FactorSet, say) -> Candidate | None:
     """The strongest candidate that passed the fit tests and pays off in cross-validation."""
     everything = sorted({i for _, test in ev.folds() for i in test})
+    cv0 = None
     for c in sorted((c for c in tried if not c.reason), key=lambda c: c.delta_bic):
-        cv0 = ev.rows(current, everything).rss()
+        cv0 = ev.rows(current, everything).rss() if cv0 is None else cv0     # the model's: the same for each
         cv1 = ev.cross_validate(current, changes[c.effect], factors)
         c.cv = (cv0, cv1)
         if pays_off_out_of_sample(cv0, cv1):
