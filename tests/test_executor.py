@@ -122,3 +122,26 @@ def test_flying_the_dynamic_tests_here_keeps_the_callers_warm_starts():
 def test_unknown_executor_is_refused():
     with pytest.raises(CalibError, match="unknown executor"):
         make_executor("threads")
+
+
+class _HoldsItsExecutor:
+    """A task that holds the executor it runs on, as a close-loop evidence does, with some data."""
+
+    def __init__(self, executor):
+        self.executor, self.data = executor, np.arange(20000.0)
+
+    def __call__(self, item):
+        return item
+
+
+def test_a_task_holding_its_executor_pickles_to_the_same_size_call_after_call():
+    """The executor pickles without its serialized functions: a task holding it carried every
+    earlier payload, so each keyed call's payload doubled (a close-loop run reached 19 GB)."""
+    ex = make_executor("serial")
+    task = _HoldsItsExecutor(ex)
+    sizes = []
+    for k in range(5):
+        assert ex.map(task, [k], key=f"call {k}") == [k]
+        sizes.append(len(cloudpickle.dumps(task)))
+    assert max(sizes) - min(sizes) < 1000, sizes
+    assert pickle.loads(pickle.dumps(ex)).map(task, [7], key="again") == [7]
