@@ -94,6 +94,8 @@ def one_run(fault: str, seed: int, values) -> dict:
             "truth": truth_value, "model": model_value, "error_of_change": err,
             "restored": bool(first == name and err is not None and err <= 0.10), "wall_s": round(wall, 1),
             "structured": [c for c, d in res.diagnosis_before.items() if d.structured],
+            "candidate_alone": accepted.factors if accepted else None,
+            "refit": {n: res.factors[n] for fr in res.refits for n in fr.names if n in res.factors},
             "tried": [f"{c.effect}: {c.reason}" for c in res.candidates]}
 
 
