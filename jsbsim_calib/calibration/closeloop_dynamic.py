@@ -767,11 +767,10 @@ class TimeHistoryEvidence:
         return [f for f in step_factors(f"{ch.axis} dynamics") if f not in same] if ch.axis else []
 
     def fit_options(self, what: str) -> dict:
+        both = {"prior": STEP_PRIOR, "prior_center": None, "ftol": FIT_TOLERANCE}
         if what == "candidate":
-            return {"prior": STEP_PRIOR, "prior_center": None, "legs": CANDIDATE_LEGS, "max_nfev": CANDIDATE_NFEV,
-                    "ftol": FIT_TOLERANCE}
-        return {"prior": STEP_PRIOR, "prior_center": None, "legs": LEGS[-2:], "max_nfev": REFIT_NFEV,
-                "ftol": FIT_TOLERANCE}
+            return {**both, "legs": CANDIDATE_LEGS, "max_nfev": CANDIDATE_NFEV}
+        return {**both, "legs": LEGS[-2:], "max_nfev": REFIT_NFEV}
 
     def judge(self, ch: Change, cand: Candidate, current: Simulator, factors: FactorSet) -> list[str]:
         return []
