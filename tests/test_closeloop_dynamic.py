@@ -13,6 +13,7 @@ import math
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import jsbsim
@@ -20,10 +21,12 @@ import numpy as np
 import pytest
 from lxml import etree
 
-from jsbsim_calib.calibration.loop import MIN_EVIDENCE, MIN_EXPLAINED, evidence_failures, pays_off_out_of_sample
-from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, acts_on, close_loop_dynamic, check_tests,
-                                                        companion_factors, cross_validate, dynamic_library,
-                                                        effect_axis, noise_in_scales)
+from jsbsim_calib.calibration.loop import MIN_EVIDENCE, MIN_EXPLAINED, Change, evidence_failures, \
+    pays_off_out_of_sample
+from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, TimeHistoryEvidence, acts_on,
+                                                        close_loop_dynamic, check_tests, companion_factors,
+                                                        cross_validate, diagnose_responses, dynamic_library,
+                                                        effect_axis, fly_all, noise_in_scales)
 from jsbsim_calib.data.flighttest import load_control_travel
 from jsbsim_calib.evaluation.evaluate_dynamic import CHANNEL_SCALES, load_recorded_tests
 from jsbsim_calib.core.errors import InputError
@@ -214,6 +217,31 @@ def test_b_the_model_flying_its_own_level5_campaign_adds_nothing(clean, tmp_path
     offsets = [abs(v) for o in res.input_offsets.values() for v in o.values()]
     assert offsets and max(offsets) <= 3 * 0.15           # the plan's surfaces: 0.1 deg noise per sample
     assert max(offsets) > 0.05                            # measured: 0.37 deg (S.18, elevator)
+
+
+def test_a_sensor_bias_is_a_nuisance_not_structure(clean, tmp_path):
+    """A sensor's constant bias over the whole campaign (0.6 deg on beta, added to the model's
+    own records) is fitted and set aside: the diagnosis reports it and finds no structure
+    beyond it (with the bias counted, beta read 0.6 deg beyond noise: structured), and the
+    loop's rows carry none of it."""
+    tests = load_recorded_tests(records(tmp_path, REPO / "aircraft" / "c172", seed=8))
+    biased = [replace(t, channels={**t.channels, "beta_deg": t.channels["beta_deg"] + 0.6}) for t in tests]
+    d = diagnose_responses(fly_all(clean, biased))["beta_deg"]
+    assert d.bias == pytest.approx(-0.6, abs=0.1) and d.beyond < 0.25 * d.scale and not d.structured, d.reason
+    rows = TimeHistoryEvidence(biased, {}).rows(clean, range(len(biased)))
+    beta = rows.residual[rows.metric == "beta_deg"]
+    assert beta.size and abs(float(np.mean(beta))) < 1e-9
+
+
+def test_only_an_added_effect_or_term_refits_the_factors_of_its_axis():
+    """A refitted factor or a scaled inertia adds nothing the stage-2b factors could have stood
+    in for, so the refit leaves them (refitted with it, on a Cm_alpha x0.7 truth's noisy
+    Level 5 campaign, they moved K_Cm_alpha from 0.425 to 0.550 against the truth's 0.437)."""
+    ev = TimeHistoryEvidence((), {})
+    assert ev.companions(Change("factor K_Cm_alpha", "factor", "pitch", target="K_Cm_alpha")) == []
+    assert ev.companions(Change("inertia iyy", "inertia", "pitch", target="iyy")) == []
+    effect = dynamic_library()["yaw_due_to_roll_rate"]
+    assert ev.companions(Change.of_effect(effect, axis=effect_axis(effect))) == companion_factors(effect) != []
 
 
 # --------------------------------------------------------------------------- the command line

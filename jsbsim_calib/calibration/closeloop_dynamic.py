@@ -256,12 +256,13 @@ class ChannelDiagnosis:
     n_effective: float                 # independent samples (lag-1 autocorrelation), for the p-values of correlates
     scale: float                       # the channel's residual scale [channel units]
     rms: float
-    bias: float
+    bias: float                        # the constant fitted over every test (a sensor's bias) [channel units]
     trend_per_s: float                 # slope against maneuver time (within each maneuver) [units/s]
     noise: float                       # estimated sensor noise, standard deviation [channel units]
     structured: bool
     reason: str
     correlates: list[Correlate] = field(default_factory=list)
+    beyond: float = math.nan           # RMS beyond the bias and the noise [channel units]
 
     @property
     def metric(self) -> str:
@@ -270,8 +271,8 @@ class ChannelDiagnosis:
     def as_dict(self) -> dict:
         return {"channel": self.channel, "axis": self.axis, "n": self.n, "n_effective": _js(self.n_effective),
                 "scale": self.scale, "rms": _js(self.rms), "bias": _js(self.bias), "trend_per_s": _js(self.trend_per_s),
-                "noise": _js(self.noise), "structured": self.structured, "reason": self.reason,
-                "correlates_with": [c.as_dict() for c in self.correlates]}
+                "noise": _js(self.noise), "beyond_bias_and_noise": _js(self.beyond), "structured": self.structured,
+                "reason": self.reason, "correlates_with": [c.as_dict() for c in self.correlates]}
 
 
 def resolution(channel: str) -> float:
@@ -335,12 +336,12 @@ def _verdict(d: ChannelDiagnosis, beyond: float, p_noise: float, unit: str) -> t
     if not math.isfinite(d.noise):
         return False, "noise could not be estimated"
     if not beyond >= MATERIAL * d.scale:
-        return False, (f"residual beyond noise {beyond:.3g} {unit} is below {MATERIAL:g} of the scale "
+        return False, (f"residual beyond bias and noise {beyond:.3g} {unit} is below {MATERIAL:g} of the scale "
                        f"{d.scale:g} {unit}")
     if not p_noise < ALPHA:
         return False, f"no more than the noise ({d.noise:.3g} {unit}) gives (p = {p_noise:.2g})"
-    parts = [f"{beyond:.3g} {unit} beyond noise ({beyond / d.scale:.2f} of the scale)",
-             f"mean {d.bias:+.3g}", f"trend {d.trend_per_s:+.3g}/s"]
+    parts = [f"{beyond:.3g} {unit} beyond bias and noise ({beyond / d.scale:.2f} of the scale)",
+             f"bias {d.bias:+.3g}", f"trend {d.trend_per_s:+.3g}/s"]
     if d.correlates:
         c = d.correlates[0]
         parts.append(f"follows {c.regressor} (r = {c.r:+.2f})")
@@ -357,14 +358,24 @@ def diagnose_channel(channel: str, responses: Sequence[Response]) -> ChannelDiag
         return ChannelDiagnosis(channel, axis, n, math.nan, scale, math.nan, math.nan, math.nan, math.nan, False,
                                 "too few samples")
     e = np.concatenate(errs)
+    w = np.concatenate([np.full(len(x.test.time_s), x.test.weights.get(channel, 1.0)) for x in flown])
+    bias = sensor_bias(e, w)
+    rest = e - bias * w
     n_eff = effective_samples(errs)
-    d = ChannelDiagnosis(channel, axis, n, n_eff, scale, float(np.sqrt(np.mean(e ** 2))), float(np.mean(e)),
+    d = ChannelDiagnosis(channel, axis, n, n_eff, scale, float(np.sqrt(np.mean(e ** 2))), bias,
                          trend(errs, [x.test.time_s for x in flown]), noise_estimate(errs, resolution(channel)),
                          False, "", correlates(e, _regressors(flown), n_eff)[:4])
-    beyond = math.sqrt(max(0.0, d.rms ** 2 - d.noise ** 2)) if math.isfinite(d.noise) else math.nan
-    p_noise = float(stats.chi2.sf(float(np.sum(e ** 2)) / d.noise ** 2, n)) if d.noise > 0 else 0.0
-    d.structured, d.reason = _verdict(d, beyond, p_noise, unit)
+    d.beyond = math.sqrt(max(0.0, float(np.mean(rest ** 2)) - d.noise ** 2)) if math.isfinite(d.noise) else math.nan
+    p_noise = float(stats.chi2.sf(float(np.sum(rest ** 2)) / d.noise ** 2, n - 1)) if d.noise > 0 else 0.0
+    d.structured, d.reason = _verdict(d, d.beyond, p_noise, unit)
     return d
+
+
+def sensor_bias(e: np.ndarray, w: np.ndarray) -> float:
+    """The constant b whose weighted error ``b w`` fits ``e`` best (a sensor's bias: one
+    constant in the channel's units, each test's weight applied); 0 where nothing is weighted."""
+    ww = float(w @ w)
+    return float(w @ e) / ww if ww > 0 else 0.0
 
 
 def diagnose_responses(responses: Sequence[Response]) -> dict[str, ChannelDiagnosis]:
@@ -413,7 +424,7 @@ def primary_axis(diag: Mapping[str, ChannelDiagnosis]) -> str:
     effect shows most on its own axis, and a round works on one axis (the next round on the
     next, once this one is explained)."""
     def beyond(d: ChannelDiagnosis) -> float:
-        b = math.sqrt(max(0.0, d.rms ** 2 - d.noise ** 2)) / d.scale
+        b = d.beyond / d.scale
         return b if math.isfinite(b) else 0.0
     return max((d for d in diag.values() if d.structured), key=beyond).axis
 
@@ -725,6 +736,8 @@ class TimeHistoryEvidence:
     def rows(self, sim: Simulator, part) -> Rows:
         flown = fly_all(sim, [self.tests[i] for i in part])
         r, v, ch = _stack([self._projected(i, x) for i, x in zip(part, flown)])
+        B = self._bias_columns(part, flown)
+        r = r - B @ np.linalg.lstsq(B, r, rcond=None)[0] if B.size else r
         labels = [f"{self.tests[i].id} {c} t={s:.2f}" for i in part for c in response_channels(self.tests[i])
                   for s in self.tests[i].time_s]
         return Rows(r, ch, v, labels)
@@ -733,6 +746,25 @@ class TimeHistoryEvidence:
         """A flown test's residuals less what its input offsets explain (:func:`offset_bases`)."""
         Q = self.bases[i]
         return x if Q is None or x.model is None else replace(x, scaled=x.scaled - Q @ (Q.T @ x.scaled))
+
+    def _bias_columns(self, part, flown: Sequence[Response]) -> np.ndarray:
+        """A column per response channel: what a constant sensor bias of one scale does to the
+        stacked residuals of the flown tests (the same constant in every test, each test's
+        weight applied; a failed test: none), less what the offsets explain. Projected out of
+        the rows with the offsets' directions (a joint projection, Frisch-Waugh), the biases
+        are nuisance parameters refitted with every candidate, as the offsets are."""
+        chans = [c for c in CHANNEL_SCALES if any(c in x.channels for x in flown if x.model is not None)]
+        blocks = []
+        for i, x in zip(part, flown):
+            n = len(x.test.time_s)
+            block = np.zeros((n * len(x.channels), len(chans)))
+            if x.model is not None:
+                for k, c in enumerate(x.channels):
+                    block[k * n:(k + 1) * n, chans.index(c)] = x.test.weights.get(c, 1.0)
+                Q = self.bases[i]
+                block = block if Q is None else block - Q @ (Q.T @ block)
+            blocks.append(block)
+        return np.concatenate(blocks) if blocks else np.zeros((0, 0))
 
     def diagnose(self, sim: Simulator) -> dict[str, ChannelDiagnosis]:
         return diagnose_responses(fly_all(sim, self.tests))
@@ -763,8 +795,11 @@ class TimeHistoryEvidence:
         return self._terms
 
     def companions(self, ch: Change) -> list[str]:
-        same = ch.effect.same_as if ch.effect is not None else ()
-        return [f for f in step_factors(f"{ch.axis} dynamics") if f not in same] if ch.axis else []
+        """The stage-2b factors of an added effect's (or term's) axis, as the trims have them: a
+        refitted factor or a scaled inertia adds nothing they could have stood in for."""
+        if ch.effect is None or not ch.axis:
+            return []
+        return [f for f in step_factors(f"{ch.axis} dynamics") if f not in ch.effect.same_as]
 
     def fit_options(self, what: str) -> dict:
         both = {"prior": STEP_PRIOR, "prior_center": None, "ftol": FIT_TOLERANCE}

@@ -37,7 +37,7 @@ from ..factors import Factor, FactorSet
 from ..jsbsim.product import AircraftPaths, write_derived
 from ..jsbsim.simulator import Simulator
 from .effects import Effect
-from .fit import FitResult, fit
+from .fit import FitResult, fit, unfitted
 
 MIN_EVIDENCE = 10.0      # BIC decrease for "very strong" evidence (Kass & Raftery)
 MIN_HELD_GAIN = 0.10     # cross-validated residual sum of squares must fall by 10 %
@@ -446,12 +446,15 @@ def add(current: Simulator, ch: Change, factors: FactorSet, cand: Candidate) -> 
 
 def refit(ev: Evidence, rnd: int, current: Simulator, added: list[Change], factors: FactorSet, say) -> FitResult:
     """Every added effect refitted with the calibration factors the evidence names for each
-    added change (fitted without it, they may have stood in for it)."""
+    added change (fitted without it, they may have stood in for it); with none of either (a
+    factor refitted or an inertia scaled, alone), the record of the model as it stands."""
     names = list(factors.extra)
     for ch in added:
         names += [f for f in ev.companions(ch) if f not in names]
     say(f"round {rnd}: added {added[-1].name}; refit of {', '.join(names) or 'nothing'}")
     fitp, _ = ev.parts()
+    if not names:
+        return unfitted(f"refit after {added[-1].name}", names, factors, _residuals(ev, current, fitp), current)
     opts = ev.fit_options("refit")
     if "prior_center" in opts:
         opts = {**opts, "prior_center": factors}
