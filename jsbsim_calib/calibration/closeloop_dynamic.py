@@ -714,6 +714,21 @@ def replay_weights(sim: Simulator, tests: Sequence[RecordedTest]) -> list[Record
             for t, s in zip(tests, spread)]
 
 
+def projected(x: Response, Q: np.ndarray | None) -> Response:
+    """A flown test less what its input offsets explain (``Q``: :func:`offset_bases`; None:
+    none): its scaled residuals projected, and its response channels moved with them (the
+    model as it flies with its offsets re-fitted, linearized). The offsets are fitted once, on
+    the model before any change; a changed model flown with them would show as structure the
+    offsets it needs now would remove."""
+    if Q is None or x.model is None:
+        return x
+    r = x.scaled - Q @ (Q.T @ x.scaled)
+    n, model = len(x.test.time_s), dict(x.model)
+    for k, c in enumerate(x.channels):
+        model[c] = x.test.channels[c] + r[k * n:(k + 1) * n] * CHANNEL_SCALES[c] / x.test.weights.get(c, 1.0)
+    return replace(x, scaled=r, model=model)
+
+
 class TimeHistoryEvidence:
     """Recorded maneuvers as evidence for the loop (:mod:`.loop`): a row per response channel
     and recorded sample, (model - data)/scale; every maneuver fitted, cross-validation over
@@ -743,9 +758,7 @@ class TimeHistoryEvidence:
         return Rows(r, ch, v, labels)
 
     def _projected(self, i: int, x: Response) -> Response:
-        """A flown test's residuals less what its input offsets explain (:func:`offset_bases`)."""
-        Q = self.bases[i]
-        return x if Q is None or x.model is None else replace(x, scaled=x.scaled - Q @ (Q.T @ x.scaled))
+        return projected(x, self.bases[i])
 
     def _bias_columns(self, part, flown: Sequence[Response]) -> np.ndarray:
         """A column per response channel: what a constant sensor bias of one scale does to the
@@ -767,7 +780,7 @@ class TimeHistoryEvidence:
         return np.concatenate(blocks) if blocks else np.zeros((0, 0))
 
     def diagnose(self, sim: Simulator) -> dict[str, ChannelDiagnosis]:
-        return diagnose_responses(fly_all(sim, self.tests))
+        return diagnose_responses([self._projected(i, x) for i, x in enumerate(fly_all(sim, self.tests))])
 
     def noise(self, d: ChannelDiagnosis) -> float:
         return noise_in_scales(d)
@@ -828,7 +841,11 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
     offsets = fit_input_offsets(sim, tests)
     tests = replay_weights(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)])
     bases = offset_bases(sim, tests)
-    before = fly_all(sim, tests)
+
+    def flown(s: Simulator) -> list[Response]:         # every test, its offsets re-fitted (linearized)
+        return [projected(x, Q) for x, Q in zip(fly_all(s, tests), bases)]
+
+    before = flown(sim)
     flying = [k for k, r in enumerate(before) if not r.failure]      # the others carry no structure (notes)
     say("input offsets (per maneuver, deg): " + "; ".join(
         f"{t.id} " + ", ".join(f"{c.split('_')[0]} {v:+.3f}" for c, v in o.items()) for t, o in zip(tests, offsets) if o))
@@ -837,7 +854,7 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
     diag0 = diagnose_responses(before)
     for c, d in diag0.items():
         say(f"diagnosis {c}: {'STRUCTURED' if d.structured else 'noise'}: {d.reason}")
-    run = run_loop(ev, sim, max_effects=max_effects, diagnosis=diag0, final=lambda s: fly_all(s, tests), progress=say)
+    run = run_loop(ev, sim, max_effects=max_effects, diagnosis=diag0, final=flown, progress=say)
     notes = [f"{r.test.id}: not flown ({r.failure}); set aside: the candidates are fitted and cross-validated on the "
              "maneuvers the model flies" for r in before if r.failure]
     return CloseLoopDynamicResult(sim.name, sim.root, tests, before, run.final, diag0, diagnose_responses(run.final),
