@@ -6,10 +6,11 @@ flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.ev
 1. fit a constant offset on each replayed surface input of every test (:func:`fit_input_offsets`:
    nuisance parameters for the error of the replay's reference, the input's first sample);
    fly every test on the model (a trim at its start, its inputs replayed) and diagnose the
-   residual time history of each response channel (:func:`diagnose_channel`): bias, trend,
-   the states and inputs it follows, against a noise estimate from its second differences (a
-   smooth model error nearly cancels there, sensor noise does not). A channel is structured
-   when its residual beyond that noise is material (a quarter of its scale,
+   residual time history of each response channel (:func:`diagnose_channel`): its constant
+   over every test (a sensor's bias, a nuisance set aside), trend, the states and inputs it
+   follows, against a noise estimate from its second differences (a smooth model error nearly
+   cancels there, sensor noise does not). A channel is structured when its residual beyond
+   that bias and noise is material (a quarter of its scale,
    :data:`jsbsim_calib.evaluation.evaluate_dynamic.CHANNEL_SCALES`) and more than the noise could give (a
    chi-square test); an axis (:data:`jsbsim_calib.evaluation.evaluate_dynamic.AXIS_CHANNELS`) when one of its
    channels is;
@@ -28,11 +29,13 @@ flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.ev
    scaled by its noise, at least 60 % of the structured residual of the channels it moves
    explained (net of what it spoils elsewhere), a material change of some sample, and a 10 %
    gain in cross-validation whose folds are whole maneuvers (:data:`CV_FOLDS`);
-3. add the best (:func:`_add`), refit its factors with the stage-2b factors of its axis
-   (``step_factors("yaw dynamics")`` ...; those it duplicates, ``same_as``, excepted; the
-   prior of the stage-2b steps about where they stand), repeat until nothing passes;
-4. fly again: before and after per axis and channel; what is still structured is reported
-   with the states it follows, not attributed.
+3. add the best, refit an added effect's or term's factors with the stage-2b factors of its
+   axis (``step_factors("yaw dynamics")`` ...; those it duplicates, ``same_as``, excepted; the
+   prior of the stage-2b steps about where they stand; a refitted factor or a scaled inertia
+   keeps the value of its own fit), repeat until nothing passes;
+4. fly again: before and after per axis and channel, each test with its
+   offsets re-fitted (linearized, as the candidates are judged: :func:`projected`); what is
+   still structured is reported with the states it follows, not attributed.
 
 The library: the trim library's effects that add a force or moment (``effects/*.xml``; those
 that change only what an instrument shows act on nothing the time histories compare: the
