@@ -625,17 +625,12 @@ def offset_bounds(tests: Sequence[RecordedTest]) -> list[dict[str, float]]:
 def _offset_jacobians(sim: Simulator, tests: Sequence[RecordedTest], offsets: Sequence[Mapping[str, float]]):
     """Each test flown at its offsets, and the change of its scaled residuals per degree of each
     of its offsets (None: no offset). A test's offsets move only its own residuals, so one
-    flight of every test per surface gives every Jacobian."""
-    channels = [c for c in OFFSET_CHANNELS if any(c in o for o in offsets)]
+    flight of each test per surface it has an offset on gives every Jacobian."""
     base = fly_all(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)])
-    moved = [{**o, c: o[c] + OFFSET_STEP_DEG} if c in o else o for c in channels for o in offsets]
-    flown = fly_all(sim, [with_offsets(t, o) for t, o in zip(list(tests) * len(channels), moved)])
-    jac = []
-    for k, o in enumerate(offsets):
-        own = [c for c in channels if c in o]
-        jac.append(np.column_stack([(flown[channels.index(c) * len(tests) + k].scaled - base[k].scaled)
-                                    / OFFSET_STEP_DEG for c in own]) if own else None)
-    return base, jac
+    steps = [(k, c) for k, o in enumerate(offsets) for c in OFFSET_CHANNELS if c in o]
+    flown = fly_all(sim, [with_offsets(tests[k], {**offsets[k], c: offsets[k][c] + OFFSET_STEP_DEG}) for k, c in steps])
+    moved = {step: (x.scaled - base[step[0]].scaled) / OFFSET_STEP_DEG for step, x in zip(steps, flown)}
+    return base, [np.column_stack([moved[k, c] for c in o]) if o else None for k, o in enumerate(offsets)]
 
 
 def fit_input_offsets(sim: Simulator, tests: Sequence[RecordedTest]) -> list[dict[str, float]]:
@@ -651,6 +646,12 @@ def fit_input_offsets(sim: Simulator, tests: Sequence[RecordedTest]) -> list[dic
     out (:func:`offset_bases`): fitted once here, on the model before any candidate, the
     offsets would otherwise keep what they took up of a missing effect."""
     bounds = offset_bounds(tests)
+    which = [k for k, b in enumerate(bounds) if b]          # a test without offsets is not flown here
+    fitted = dict(zip(which, _fitted_offsets(sim, [tests[k] for k in which], [bounds[k] for k in which])))
+    return [fitted.get(k, {}) for k in range(len(tests))]
+
+
+def _fitted_offsets(sim: Simulator, tests: Sequence[RecordedTest], bounds: Sequence[Mapping[str, float]]):
     offsets = [dict.fromkeys(b, 0.0) for b in bounds]
     best = [(math.inf, dict(o)) for o in offsets]
 
@@ -674,9 +675,10 @@ def offset_bases(sim: Simulator, tests: Sequence[RecordedTest]) -> list[np.ndarr
     of a test's residuals re-fits its offsets, linearized, with every candidate: a candidate
     is judged on what no offset explains (variable projection of nuisance parameters)."""
     zero = [dict.fromkeys(b, 0.0) for b in offset_bounds(tests)]
-    base, jac = _offset_jacobians(sim, tests, zero)
-    return [np.linalg.qr(J)[0] if J is not None and x.model is not None and np.all(np.isfinite(J)) else None
-            for x, J in zip(base, jac)]
+    which = [k for k, o in enumerate(zero) if o]
+    base, jac = _offset_jacobians(sim, [tests[k] for k in which], [zero[k] for k in which])
+    bases = {k: np.linalg.qr(J)[0] for k, x, J in zip(which, base, jac) if x.model is not None and np.all(np.isfinite(J))}
+    return [bases.get(k) for k in range(len(tests))]
 
 
 # --------------------------------------------------------------------------- what the inputs' noise gives
