@@ -117,7 +117,7 @@ class Evidence(Protocol):
     def companions(self, ch: "Change") -> list[str]: ...
     def fit_options(self, what: str) -> dict: ...                    # 'candidate' or 'refit'
     def judge(self, ch: "Change", cand: "Candidate", current: Simulator, factors: FactorSet) -> list[str]: ...
-    def cross_validate(self, current: Simulator, ch: "Change", factors: FactorSet) -> float: ...   # cross_validate()
+    def cross_validate(self, current: Simulator, ch: "Change", factors: FactorSet) -> float: ...   # cross_validate() for all but terms
 
 
 # --------------------------------------------------------------------------- candidates
@@ -374,13 +374,35 @@ def _try(ev: Evidence, start: Round, current: Simulator, factors: FactorSet, ch:
     return c
 
 
+def _task(ev: Evidence, start: Round, current: Simulator, factors: FactorSet, item) -> Candidate | str | float | None:
+    """A candidate's fit (``("fit", change)``) or one of its folds (``("fold", change, fold)``;
+    None where its fit fails: the fold is left to :func:`cross_validate`, as if not run ahead)."""
+    if item[0] == "fit":
+        return _try(ev, start, current, factors, item[1])
+    try:
+        return _fold(ev, current, item[1], factors, item[2])
+    except CalibError:
+        return None
+
+
 def try_changes(ev: Evidence, start: Round, current: Simulator, changes: Sequence[Change], factors: FactorSet,
-                say) -> list[Candidate]:
+                say, ahead: dict[str, float] | None = None) -> list[Candidate]:
     """Each change fitted alone on the fitted part and scored, as independent tasks on the
     evidence's executor (each fit starts from a fresh copy of the model: the same bits on
-    any executor); one that breaks the model is rejected with the error named."""
+    any executor); one that breaks the model is rejected with the error named.
+
+    ``ahead``: on a parallel executor, the folds of the first change (the likeliest: the
+    evidence lists its candidates strongest first) run in the same batch, where the fits
+    leave workers idle, and its cross-validated sum is stored here by name (the sum
+    :func:`cross_validate` gives: the same tasks, added in the same order)."""
+    folds = ev.folds() if ahead is not None and ev.executor.workers > 1 and changes and changes[0].kind != "term" else []
+    folds = folds if len(folds) >= 2 else []
+    items = [("fit", ch) for ch in changes] + [("fold", changes[0], f) for f in folds]
+    done = ev.executor.map(partial(_task, ev, start, current, factors), items)
+    if folds and all(x is not None for x in done[len(changes):]):
+        ahead[changes[0].name] = sum(done[len(changes):], 0.0)
     tried = []
-    for ch, c in zip(changes, ev.executor.map(partial(_try, ev, start, current, factors), list(changes))):
+    for ch, c in zip(changes, done[:len(changes)]):
         if isinstance(c, str):
             say(f"round {start.number}: {ch.name}: {c}")
             continue
@@ -408,13 +430,15 @@ def cross_validate(ev: Evidence, current: Simulator, ch: Change, factors: Factor
 
 
 def best_out_of_sample(ev: Evidence, tried: list[Candidate], current: Simulator, changes: Mapping[str, Change],
-                       factors: FactorSet, say) -> Candidate | None:
-    """The strongest candidate that passed the fit tests and pays off in cross-validation."""
+                       factors: FactorSet, say, ahead: Mapping[str, float] | None = None) -> Candidate | None:
+    """The strongest candidate that passed the fit tests and pays off in cross-validation
+    (``ahead``: sums already computed, by name: :func:`try_changes`)."""
     everything = sorted({i for _, test in ev.folds() for i in test})
     cv0 = None
     for c in sorted((c for c in tried if not c.reason), key=lambda c: c.delta_bic):
         cv0 = ev.rows(current, everything).rss() if cv0 is None else cv0     # the model's: the same for each
-        cv1 = ev.cross_validate(current, changes[c.effect], factors)
+        cv1 = (ahead or {}).get(c.effect)
+        cv1 = ev.cross_validate(current, changes[c.effect], factors) if cv1 is None else cv1
         c.cv = (cv0, cv1)
         if pays_off_out_of_sample(cv0, cv1):
             return c
@@ -487,8 +511,9 @@ def _round(ev: Evidence, rnd: int, current: Simulator, factors: FactorSet, diag,
     start = start_round(ev, rnd, current, diag)
     named = ev.named(rnd, current, diag, factors)
     by_name = {c.name: c for c in named}
-    tried = try_changes(ev, start, current, named, factors, say)
-    best = best_out_of_sample(ev, tried, current, by_name, factors, say)
+    ahead: dict[str, float] = {}
+    tried = try_changes(ev, start, current, named, factors, say, ahead)
+    best = best_out_of_sample(ev, tried, current, by_name, factors, say, ahead)
     if best is None:
         terms = ev.synthesized(rnd, current, diag, factors, start)
         by_name.update({c.name: c for c in terms})
