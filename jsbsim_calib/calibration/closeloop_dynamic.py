@@ -54,6 +54,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from functools import partial
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
@@ -192,6 +193,29 @@ def fly_response(sim: Simulator, test: RecordedTest) -> Response:
 
 def fly_all(sim: Simulator, tests: Sequence[RecordedTest]) -> list[Response]:
     return [fly_response(sim, t) for t in tests]
+
+
+FLIGHT_CHUNKS = 4            # the loop's own flights (offsets, weights, before and after): chunks of tests
+
+
+def _fly_chunk(sim: Simulator, tests: Sequence[RecordedTest]) -> list[Response]:
+    with sim.clone() as fresh:
+        return fly_all(fresh, tests)
+
+
+def fly_spread(sim: Simulator, tests: Sequence[RecordedTest], executor: Executor = SERIAL) -> list[Response]:
+    """Every test flown, in :data:`FLIGHT_CHUNKS` contiguous chunks, each on a fresh copy of the
+    model, as independent tasks on ``executor``. A flight's last bits depend on the flights the
+    model made before it (the trim starts from the state the last one left in JSBSim: 8e-14 in
+    the scaled residuals), so the chunks, not the executor, fix that history: the same bits on
+    any executor and any number of workers."""
+    tests = list(tests)
+    if not tests:
+        return []
+    k = min(FLIGHT_CHUNKS, len(tests))
+    cuts = [len(tests) * i // k for i in range(k + 1)]
+    flown = executor.map(partial(_fly_chunk, sim), [tests[a:b] for a, b in zip(cuts, cuts[1:])])
+    return [x for part in flown for x in part]
 
 
 def _stack(responses: Sequence[Response]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -622,18 +646,20 @@ def offset_bounds(tests: Sequence[RecordedTest]) -> list[dict[str, float]]:
     return out
 
 
-def _offset_jacobians(sim: Simulator, tests: Sequence[RecordedTest], offsets: Sequence[Mapping[str, float]]):
+def _offset_jacobians(sim: Simulator, tests: Sequence[RecordedTest], offsets: Sequence[Mapping[str, float]],
+                      executor: Executor = SERIAL):
     """Each test flown at its offsets, and the change of its scaled residuals per degree of each
     of its offsets (None: no offset). A test's offsets move only its own residuals, so one
     flight of each test per surface it has an offset on gives every Jacobian."""
-    base = fly_all(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)])
     steps = [(k, c) for k, o in enumerate(offsets) for c in OFFSET_CHANNELS if c in o]
-    flown = fly_all(sim, [with_offsets(tests[k], {**offsets[k], c: offsets[k][c] + OFFSET_STEP_DEG}) for k, c in steps])
+    flown = fly_spread(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)] + [
+        with_offsets(tests[k], {**offsets[k], c: offsets[k][c] + OFFSET_STEP_DEG}) for k, c in steps], executor)
+    base, flown = flown[:len(tests)], flown[len(tests):]
     moved = {step: (x.scaled - base[step[0]].scaled) / OFFSET_STEP_DEG for step, x in zip(steps, flown)}
     return base, [np.column_stack([moved[k, c] for c in o]) if o else None for k, o in enumerate(offsets)]
 
 
-def fit_input_offsets(sim: Simulator, tests: Sequence[RecordedTest]) -> list[dict[str, float]]:
+def fit_input_offsets(sim: Simulator, tests: Sequence[RecordedTest], executor: Executor = SERIAL) -> list[dict[str, float]]:
     """Per test, a constant offset on each replayed surface input, fitted to its response by
     Gauss-Newton (nuisance parameters, as output-error identification fits biases). A replay
     takes each input as a change from its first sample, so that sample's noise offsets the
@@ -647,11 +673,12 @@ def fit_input_offsets(sim: Simulator, tests: Sequence[RecordedTest]) -> list[dic
     offsets would otherwise keep what they took up of a missing effect."""
     bounds = offset_bounds(tests)
     which = [k for k, b in enumerate(bounds) if b]          # a test without offsets is not flown here
-    fitted = dict(zip(which, _fitted_offsets(sim, [tests[k] for k in which], [bounds[k] for k in which])))
+    fitted = dict(zip(which, _fitted_offsets(sim, [tests[k] for k in which], [bounds[k] for k in which], executor)))
     return [fitted.get(k, {}) for k in range(len(tests))]
 
 
-def _fitted_offsets(sim: Simulator, tests: Sequence[RecordedTest], bounds: Sequence[Mapping[str, float]]):
+def _fitted_offsets(sim: Simulator, tests: Sequence[RecordedTest], bounds: Sequence[Mapping[str, float]],
+                    executor: Executor):
     offsets = [dict.fromkeys(b, 0.0) for b in bounds]
     best = [(math.inf, dict(o)) for o in offsets]
 
@@ -659,24 +686,24 @@ def _fitted_offsets(sim: Simulator, tests: Sequence[RecordedTest], bounds: Seque
         return [(c, dict(o)) if (c := float(x.scaled @ x.scaled)) < b[0] else b for x, o, b in zip(flown, offsets, best)]
 
     for it in range(OFFSET_ITERATIONS):
-        base, jac = _offset_jacobians(sim, tests, offsets)
+        base, jac = _offset_jacobians(sim, tests, offsets, executor)
         best = keep_best(base)
         for k, (o, J) in enumerate(zip(offsets, jac)):
             if J is not None and base[k].model is not None:
                 step = np.linalg.lstsq(J, -base[k].scaled, rcond=None)[0]
                 offsets[k] = {c: float(np.clip(o[c] + dx, -bounds[k][c], bounds[k][c])) for c, dx in zip(o, step)}
-    best = keep_best(fly_all(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)]))
+    best = keep_best(fly_spread(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)], executor))
     return [b[1] for b in best]
 
 
-def offset_bases(sim: Simulator, tests: Sequence[RecordedTest]) -> list[np.ndarray | None]:
+def offset_bases(sim: Simulator, tests: Sequence[RecordedTest], executor: Executor = SERIAL) -> list[np.ndarray | None]:
     """Per test (offsets applied, weights set), an orthonormal basis of the directions its
     offsets move its scaled residuals in (None: no offset, or not flown). Projecting them out
     of a test's residuals re-fits its offsets, linearized, with every candidate: a candidate
     is judged on what no offset explains (variable projection of nuisance parameters)."""
     zero = [dict.fromkeys(b, 0.0) for b in offset_bounds(tests)]
     which = [k for k, o in enumerate(zero) if o]
-    base, jac = _offset_jacobians(sim, [tests[k] for k in which], [zero[k] for k in which])
+    base, jac = _offset_jacobians(sim, [tests[k] for k in which], [zero[k] for k in which], executor)
     bases = {k: np.linalg.qr(J)[0] for k, x, J in zip(which, base, jac) if x.model is not None and np.all(np.isfinite(J))}
     return [bases.get(k) for k in range(len(tests))]
 
@@ -700,7 +727,7 @@ def _noisy(test: RecordedTest, rng: np.random.Generator) -> RecordedTest:
     return replace(test, maneuver=replace(test.maneuver, inputs=inputs))
 
 
-def replay_weights(sim: Simulator, tests: Sequence[RecordedTest]) -> list[RecordedTest]:
+def replay_weights(sim: Simulator, tests: Sequence[RecordedTest], executor: Executor = SERIAL) -> list[RecordedTest]:
     """Each test with a weight per channel: 1 / sqrt(1 + (spread / scale)^2), the spread the
     RMS change of the model's response when the inputs' own noise is drawn again
     (:data:`REPLAY_DRAWS` replays). A replay feeds the recorded inputs, noise included, to the
@@ -708,10 +735,12 @@ def replay_weights(sim: Simulator, tests: Sequence[RecordedTest]) -> list[Record
     by more than any model error, and such a test must not read as structure; a test whose
     inputs carry no noise keeps weight 1."""
     rng = np.random.default_rng(REPLAY_SEED)
-    base = fly_all(sim, tests)
+    noisy = [_noisy(t, rng) for _ in range(REPLAY_DRAWS) for t in tests]
+    flown = fly_spread(sim, list(tests) + noisy, executor)
+    base = flown[:len(tests)]
     spread = [{c: 0.0 for c in x.channels} for x in base]
-    for _ in range(REPLAY_DRAWS):
-        for k, x in enumerate(fly_all(sim, [_noisy(t, rng) for t in tests])):
+    for draw in range(REPLAY_DRAWS):
+        for k, x in enumerate(flown[(draw + 1) * len(tests):(draw + 2) * len(tests)]):
             for c in x.channels:
                 d = (x.model[c] - base[k].model[c]) if x.model is not None and base[k].model is not None else np.inf
                 spread[k][c] += float(np.mean(np.square(d))) / REPLAY_DRAWS
@@ -843,12 +872,12 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
     say = progress or (lambda s: None)
     tests = list(tests)
     check_tests(tests)
-    offsets = fit_input_offsets(sim, tests)
-    tests = replay_weights(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)])
-    bases = offset_bases(sim, tests)
+    offsets = fit_input_offsets(sim, tests, executor)
+    tests = replay_weights(sim, [with_offsets(t, o) for t, o in zip(tests, offsets)], executor)
+    bases = offset_bases(sim, tests, executor)
 
     def flown(s: Simulator) -> list[Response]:         # every test, its offsets re-fitted (linearized)
-        return [projected(x, Q) for x, Q in zip(fly_all(s, tests), bases)]
+        return [projected(x, Q) for x, Q in zip(fly_spread(s, tests, executor), bases)]
 
     before = flown(sim)
     flying = [k for k, r in enumerate(before) if not r.failure]      # the others carry no structure (notes)
