@@ -659,7 +659,8 @@ def _offset_jacobians(sim: Simulator, tests: Sequence[RecordedTest], offsets: Se
     return base, [np.column_stack([moved[k, c] for c in o]) if o else None for k, o in enumerate(offsets)]
 
 
-def fit_input_offsets(sim: Simulator, tests: Sequence[RecordedTest], executor: Executor = SERIAL) -> list[dict[str, float]]:
+def fit_input_offsets(sim: Simulator, tests: Sequence[RecordedTest],
+                      executor: Executor = SERIAL) -> list[dict[str, float]]:
     """Per test, a constant offset on each replayed surface input, fitted to its response by
     Gauss-Newton (nuisance parameters, as output-error identification fits biases). A replay
     takes each input as a change from its first sample, so that sample's noise offsets the
@@ -704,7 +705,8 @@ def offset_bases(sim: Simulator, tests: Sequence[RecordedTest], executor: Execut
     zero = [dict.fromkeys(b, 0.0) for b in offset_bounds(tests)]
     which = [k for k, o in enumerate(zero) if o]
     base, jac = _offset_jacobians(sim, [tests[k] for k in which], [zero[k] for k in which], executor)
-    bases = {k: np.linalg.qr(J)[0] for k, x, J in zip(which, base, jac) if x.model is not None and np.all(np.isfinite(J))}
+    bases = {k: np.linalg.qr(J)[0] for k, x, J in zip(which, base, jac)
+             if x.model is not None and np.all(np.isfinite(J))}
     return [bases.get(k) for k in range(len(tests))]
 
 

@@ -117,7 +117,8 @@ class Evidence(Protocol):
     def companions(self, ch: "Change") -> list[str]: ...
     def fit_options(self, what: str) -> dict: ...                    # 'candidate' or 'refit'
     def judge(self, ch: "Change", cand: "Candidate", current: Simulator, factors: FactorSet) -> list[str]: ...
-    def cross_validate(self, current: Simulator, ch: "Change", factors: FactorSet) -> float: ...   # cross_validate() for all but terms
+    # a named change's must be cross_validate()'s sum: try_changes may run its folds ahead
+    def cross_validate(self, current: Simulator, ch: "Change", factors: FactorSet) -> float: ...
 
 
 # --------------------------------------------------------------------------- candidates
@@ -395,7 +396,8 @@ def try_changes(ev: Evidence, start: Round, current: Simulator, changes: Sequenc
     evidence lists its candidates strongest first) run in the same batch, where the fits
     leave workers idle, and its cross-validated sum is stored here by name (the sum
     :func:`cross_validate` gives: the same tasks, added in the same order)."""
-    folds = ev.folds() if ahead is not None and ev.executor.workers > 1 and changes and changes[0].kind != "term" else []
+    run_ahead = ahead is not None and ev.executor.workers > 1 and bool(changes) and changes[0].kind != "term"
+    folds = ev.folds() if run_ahead else []
     folds = folds if len(folds) >= 2 else []
     items = [("fit", ch) for ch in changes] + [("fold", changes[0], f) for f in folds]
     done = ev.executor.map(partial(_task, ev, start, current, factors), items)
