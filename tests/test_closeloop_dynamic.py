@@ -26,9 +26,9 @@ from jsbsim_calib.calibration.loop import MIN_EVIDENCE, MIN_EXPLAINED, Change, e
 from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, TimeHistoryEvidence, acts_on,
                                                         close_loop_dynamic, check_tests, companion_factors,
                                                         cross_validate, diagnose_responses, dynamic_library,
-                                                        effect_axis, fly_all, noise_in_scales)
+                                                        effect_axis, fly_all, noise_in_scales, projected)
 from jsbsim_calib.data.flighttest import load_control_travel
-from jsbsim_calib.evaluation.evaluate_dynamic import CHANNEL_SCALES, load_recorded_tests
+from jsbsim_calib.evaluation.evaluate_dynamic import CHANNEL_SCALES, FAIL_RESIDUAL, load_recorded_tests
 from jsbsim_calib.core.errors import InputError
 from jsbsim_calib.jsbsim import xml
 from jsbsim_calib.jsbsim.aircraft import EFFECT_SYSTEM_PREFIX
@@ -231,6 +231,20 @@ def test_a_sensor_bias_is_a_nuisance_not_structure(clean, tmp_path):
     rows = TimeHistoryEvidence(biased, {}).rows(clean, range(len(biased)))
     beta = rows.residual[rows.metric == "beta_deg"]
     assert beta.size and abs(float(np.mean(beta))) < 1e-9
+
+
+def test_a_projected_response_keeps_a_missing_sample_missing(clean, tmp_path):
+    """Re-fitting a test's offsets (linearized) moves its model channels with its residuals, but a
+    sample the model did not give stays NaN (its residual is the failure penalty, not a value)."""
+    test = load_recorded_tests(records(tmp_path, REPO / "aircraft" / "c172", seed=8))[0]
+    x = fly_all(clean, [test])[0]
+    c = x.channels[0]
+    model = {**x.model, c: np.where(np.arange(len(test.time_s)) == 3, np.nan, x.model[c])}
+    scaled = np.where(np.isfinite(np.concatenate([model[ch] for ch in x.channels])), x.scaled, FAIL_RESIDUAL)
+    Q = np.linalg.qr(np.random.default_rng(1).normal(size=(x.scaled.size, 1)))[0]
+    y = projected(replace(x, model=model, scaled=scaled), Q)
+    assert np.isnan(y.model[c][3]) and np.all(np.isfinite(np.delete(y.model[c], 3)))
+    assert not np.array_equal(y.scaled, scaled)
 
 
 def test_only_an_added_effect_or_term_refits_the_factors_of_its_axis():

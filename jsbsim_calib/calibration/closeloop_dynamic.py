@@ -755,13 +755,15 @@ def projected(x: Response, Q: np.ndarray | None) -> Response:
     none): its scaled residuals projected, and its response channels moved with them (the
     model as it flies with its offsets re-fitted, linearized). The offsets are fitted once, on
     the model before any change; a changed model flown with them would show as structure the
-    offsets it needs now would remove."""
+    offsets it needs now would remove. A sample the model did not give (NaN) stays NaN: its
+    scaled residual is the failure penalty, not a value of the model."""
     if Q is None or x.model is None:
         return x
     r = x.scaled - Q @ (Q.T @ x.scaled)
     n, model = len(x.test.time_s), dict(x.model)
     for k, c in enumerate(x.channels):
-        model[c] = x.test.channels[c] + r[k * n:(k + 1) * n] * CHANNEL_SCALES[c] / x.test.weights.get(c, 1.0)
+        moved = x.test.channels[c] + r[k * n:(k + 1) * n] * CHANNEL_SCALES[c] / x.test.weights.get(c, 1.0)
+        model[c] = np.where(np.isfinite(x.model[c]), moved, np.nan)
     return replace(x, scaled=r, model=model)
 
 
