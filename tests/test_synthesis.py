@@ -89,6 +89,24 @@ def test_stlsq_finds_the_sparse_term_and_the_null_test_refuses_noise():
     assert synthesis.select(lin.subset(range(20))).rows == 40
 
 
+def test_the_small_supports_are_scored_where_stlsq_jumps_over_them():
+    """Correlated columns (a common part): STLSQ's threshold drops from 6 terms to 1 here, so
+    the supports of 2 and 3 terms are the forward path's; each size up to MAX_TERMS is scored
+    and the sparse truth is kept (the dynamic screen's dictionaries are this correlated:
+    on a roll record STLSQ visited no support of 3 terms or fewer and selected nothing)."""
+    rng = np.random.default_rng(19)
+    terms = synthesis.dictionary(["ROLL"])
+    common = rng.standard_normal(200)
+    J = 0.9 * common[:, None] + 0.45 * rng.standard_normal((200, len(terms)))
+    lin = synthesis.Linearization(terms, 0.3 * J[:, 4] + 0.1 * rng.standard_normal(200), -J, np.full(200, 10.0),
+                                  tuple(str(i // 2) for i in range(200)), tuple("ab"[i % 2] for i in range(200)))
+    nq, _, _ = synthesis._normal(lin)
+    assert not {2, 3} & {len(S) for S in synthesis.stlsq_path(nq, nq.b)}
+    sel = synthesis.select(lin)
+    assert {1, 2, 3} <= {len(s) for s, _ in sel.path}
+    assert sel.terms == (terms[4],) and sel.coefficients[0] == pytest.approx(0.3, rel=0.05)
+
+
 # --------------------------------------------------------------------------- effects outside the library
 # (term, data, points, seed, metric); measured (committed C172, this machine): regressor found,
 # metric within tolerance before -> after, fitted coefficient vs truth

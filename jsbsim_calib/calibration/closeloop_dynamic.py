@@ -20,7 +20,9 @@ flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.ev
    factors of the axis, its moment of inertia and the dictionary's terms (rates times states,
    alpha-dot, deflections times states). The :data:`FINALISTS` strongest named candidates are
    flown; the sparse selection of terms (one synthesized effect; a single term of a factor's
-   form is that factor) is flown only when no named candidate passes. Each finalist
+   form is that factor) is flown with them when its equation error explains more than every
+   named candidate's (a control power or a damping that varies with a state: the factor alone
+   explains less than the term), otherwise only when no named candidate passes. Each finalist
    (:class:`Change`: an effect or term added, a factor refitted alone, an inertia scaled)
    is fitted alone on all the tests (residuals
    (model - data)/scale at every recorded sample of every response channel) and score it with
@@ -479,12 +481,13 @@ class Screen:
     selection: Selection | None
     finalists: list[str]
     wall_time_s: float
+    promoted: bool = False       # the selected terms explain more than every named candidate: flown with them
 
     def as_dict(self) -> dict:
         return {"round": self.round, "axes": list(self.axes), "rows": self.rows,
                 "ranked": [r.as_dict() for r in self.ranked[:SCREEN_LISTED]],
                 "selection": self.selection.as_dict() if self.selection else None,
-                "finalists": self.finalists, "wall_time_s": self.wall_time_s}
+                "finalists": self.finalists, "terms_flown_with_named": self.promoted, "wall_time_s": self.wall_time_s}
 
 
 def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests, diag) -> tuple[Screen, list[Change]]:
@@ -501,11 +504,14 @@ def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests, diag)
     named = [r for r in ranked if r.kind != "term"][:FINALISTS]
     changes = [_named_change(r, effects) for r in named]
     sel = select(_terms_only(lin)) if lin.residual.size else None
+    promoted = False
     if sel is not None and sel.terms:
         changes.append(_synthesized_change(sel, lin, tests, changes))
+        promoted = sel.explained > max((r.explained for r in named), default=0.0)
     changes = list({c.name: c for c in changes if c is not None}.values())
     return Screen(rnd, tuple(axes), int(lin.residual.size), ranked, sel, [c.name for c in changes],
-                  time.perf_counter() - t0), changes
+                  time.perf_counter() - t0, promoted), changes
+
 
 
 def _named_change(r: Ranked, effects: Mapping[str, Effect]) -> Change:
@@ -839,8 +845,8 @@ class TimeHistoryEvidence:
     def named(self, rnd: int, current: Simulator, diag, factors: FactorSet) -> list[Change]:
         scr, changes = screen(rnd, current, self.lib, self.tests, diag)
         self.screens.append(scr)
-        self._terms = [c for c in changes if c.kind == "term"]
-        return [c for c in changes if c.kind != "term"]
+        self._terms = [] if scr.promoted else [c for c in changes if c.kind == "term"]
+        return changes if scr.promoted else [c for c in changes if c.kind != "term"]
 
     def synthesized(self, rnd: int, current: Simulator, diag, factors: FactorSet, start: Round) -> list[Change]:
         return self._terms

@@ -13,7 +13,9 @@ histories can reuse all of them with its own residual function):
 3. :func:`select`: sparse regression on the linearized problem, sequential thresholded least
    squares (STLSQ, as SINDy) on noise-weighted, unit-norm columns with a small ridge, its
    threshold raised step by step from the last support (each step drops the weakest term),
-   and of the supports this path visits (at most :data:`MAX_TERMS` terms) the one with the
+   and the supports of forward stepwise selection (:func:`forward_path`: with correlated
+   columns the threshold can drop a whole block of terms at once and pass over every small
+   support); of the supports these paths visit (at most :data:`MAX_TERMS` terms) the one with the
    lowest extended Bayesian information criterion (BIC plus the log of the number of
    supports of its size, :func:`ebic_penalty`: with a dictionary of 15 terms plain BIC
    buys noise with extra terms);
@@ -172,7 +174,10 @@ def term_effect(terms: Sequence[Term], estimates: Sequence[float], *, source: st
     neutral 0, bounds :data:`BOUND_MULTIPLE` times its estimate, rounded), one ``<function>`` per
     term in its axis; ``source`` names the data the terms came from (descriptions, comments);
     ``held``: calibration factors not to refit with it (its ``same_as``, with those of
-    :data:`.terms.SAME_FORM`)."""
+    :data:`.terms.SAME_FORM` for each term and for each state of a product: Cl ~ aileron x qbar
+    is the aileron power K_da_slope made to vary with the dynamic pressure, and refitted with
+    it, the two nearly collinear where the state varies little, the split between them followed
+    the sensors' errors: on the Level 5 plan 0.70 of the truth's coefficient, held 1.000)."""
     if not terms:
         raise ModelError("an effect needs at least one term")
     name = EFFECT_PREFIX + "_".join(t.name for t in terms)
@@ -184,7 +189,8 @@ def term_effect(terms: Sequence[Term], estimates: Sequence[float], *, source: st
                               f"{AXES[t.axis].noun.split(' (')[0]} term", doc))
     description = "; ".join(f"Delta {t.label.replace(' ~ ', ' = K x ')} [K in {t.unit}]" for t in terms)
     note = f"Synthesized from {source}: " + "; ".join(f"{t.label}: {t.interpretation()}" for t in terms)
-    same = tuple(dict.fromkeys([f for t in terms for f in SAME_FORM.get((t.axis, t.regressor), ())] + list(held)))
+    forms = [(t.axis, r) for t in terms for r in dict.fromkeys([t.regressor, *t.regressor.split(" x ")])]
+    same = tuple(dict.fromkeys([f for form in forms for f in SAME_FORM.get(form, ())] + list(held)))
     text = _effect_xml(name, terms, factors, description, note, affects, f"synthesized by jsbsim-calib close-loop "
                        f"from {source}")
     return Effect(name, description, tuple(affects), same, ", ".join(t.regressor for t in terms), note,
@@ -364,6 +370,28 @@ def stlsq_path(nq: _Normal, b: np.ndarray, ridge: float = RIDGE) -> list[tuple[i
     return path
 
 
+def forward_path(nq: _Normal, b: np.ndarray, max_terms: int) -> list[tuple[int, ...]]:
+    """Supports of forward stepwise selection: from none, the term that lowers the chi-square
+    most is added, up to ``max_terms`` (ties: the first column). STLSQ's threshold can drop a
+    whole block of correlated terms at once and pass over the small supports; these are the
+    small supports a greedy search visits."""
+    S: list[int] = []
+    path = []
+    for _ in range(min(max_terms, len(nq.usable))):
+        best, best_chi2 = None, math.inf
+        for j in range(len(nq.usable)):
+            if j in S:
+                continue
+            chi2, _ = _chi2(nq, S + [j], b)
+            if chi2 < best_chi2:
+                best, best_chi2 = j, chi2
+        if best is None:
+            break
+        S.append(best)
+        path.append(tuple(sorted(S)))
+    return path
+
+
 def ebic_penalty(k: int, n_rows: int, n_candidates: int, gamma: float = EBIC_GAMMA) -> float:
     """Penalty of a support of k terms out of ``n_candidates`` on ``n_rows`` residuals: BIC's
     k ln n plus 2 gamma ln C(p, k) (extended BIC, Chen & Chen 2008), the price of having
@@ -373,12 +401,13 @@ def ebic_penalty(k: int, n_rows: int, n_candidates: int, gamma: float = EBIC_GAM
 
 def _best(nq: _Normal, b: np.ndarray, n_rows: int, max_terms: int) -> tuple[tuple[int, ...], float, np.ndarray,
                                                                                list[tuple[tuple[int, ...], float]]]:
-    """The support of the path (at most ``max_terms``) with the lowest extended BIC (ties: the
-    smaller): support, chi2, least-squares weights, and every support scored (change from none)."""
+    """The support of the forward and the STLSQ paths (at most ``max_terms`` terms) with the
+    lowest extended BIC (ties: the smaller, then the first visited): support, chi2,
+    least-squares weights, and every support scored (change from none)."""
     p = len(nq.usable)
     best, best_score = ((), nq.yy, np.zeros(0)), 0.0
     scored: list[tuple[tuple[int, ...], float]] = [((), 0.0)]
-    for S in stlsq_path(nq, b):
+    for S in forward_path(nq, b, max_terms) + stlsq_path(nq, b):
         if len(S) > max_terms or any(S == s for s, _ in scored):
             continue
         chi2, w = _chi2(nq, S, b)
