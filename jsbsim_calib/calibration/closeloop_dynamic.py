@@ -481,7 +481,7 @@ class Screen:
     selection: Selection | None
     finalists: list[str]
     wall_time_s: float
-    promoted: bool = False       # the selected terms explain more than every named candidate: flown with them
+    promoted: bool = False       # a single term explains more than every named candidate: flown with them
 
     def as_dict(self) -> dict:
         return {"round": self.round, "axes": list(self.axes), "rows": self.rows,
@@ -490,11 +490,14 @@ class Screen:
                 "finalists": self.finalists, "terms_flown_with_named": self.promoted, "wall_time_s": self.wall_time_s}
 
 
-def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests, diag) -> tuple[Screen, list[Change]]:
+def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests,
+           diag) -> tuple[Screen, list[Change], list[Change]]:
     """Rank every candidate of the structured axes by equation error (module
-    :mod:`.equation_error`), then keep the finalists to fly: the :data:`FINALISTS` strongest
-    named candidates (effects, factors, inertias) and the sparse selection of dictionary terms,
-    as one synthesized effect (a term of the same form as a factor is that factor)."""
+    :mod:`.equation_error`), then keep the finalists to fly: first the :data:`FINALISTS`
+    strongest named candidates (effects, factors, inertias), with the strongest single term
+    where it explains more than each of them (:func:`_top_term`); then, if none of those
+    passes, the sparse selection of dictionary terms as one synthesized effect (a term of the
+    same form as a factor is that factor)."""
     t0 = time.perf_counter()
     axes = (primary_axis(diag),)
     cols, effects = _columns(current, lib, axes)
@@ -503,14 +506,27 @@ def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests, diag)
     ranked = rank(lin)
     named = [r for r in ranked if r.kind != "term"][:FINALISTS]
     changes = [_named_change(r, effects) for r in named]
+    top = _top_term(ranked, lin)
+    if top is not None:
+        changes.append(_synthesized_change(top, lin, tests, changes))
+    first = list({c.name: c for c in changes if c is not None}.values())
     sel = select(_terms_only(lin)) if lin.residual.size else None
-    promoted = False
-    if sel is not None and sel.terms:
-        changes.append(_synthesized_change(sel, lin, tests, changes))
-        promoted = sel.explained > max((r.explained for r in named), default=0.0)
-    changes = list({c.name: c for c in changes if c is not None}.values())
-    return Screen(rnd, tuple(axes), int(lin.residual.size), ranked, sel, [c.name for c in changes],
-                  time.perf_counter() - t0, promoted), changes
+    then = [c for c in [_synthesized_change(sel, lin, tests, first)] if c is not None and c.name not in
+            {x.name for x in first}] if sel is not None and sel.terms else []
+    first += [c for c in then if c.kind != "term"]          # a selected factor's form: that factor, named
+    then = [c for c in then if c.kind == "term"]
+    return Screen(rnd, tuple(axes), int(lin.residual.size), ranked, sel, [c.name for c in first + then],
+                  time.perf_counter() - t0, top is not None), first, then
+
+
+def _top_term(ranked: Sequence[Ranked], lin: Linearization) -> Selection | None:
+    """The term that explains most alone, where it explains more than every named candidate
+    (a control power or a damping that varies with a state: the factor alone explains part):
+    one coefficient, flown with the named candidates on equal terms."""
+    if not ranked or ranked[0].kind != "term":
+        return None
+    term = next(c.term for c in lin.terms if c.name == ranked[0].columns[0])
+    return Selection((term,), ranked[0].estimate, math.nan, math.nan, int(lin.residual.size))
 
 
 
@@ -843,10 +859,9 @@ class TimeHistoryEvidence:
         return tuple(c for c in CHANNEL_SCALES if CHANNEL_AXIS[c] in COUPLED.get(ch.axis, ()))
 
     def named(self, rnd: int, current: Simulator, diag, factors: FactorSet) -> list[Change]:
-        scr, changes = screen(rnd, current, self.lib, self.tests, diag)
+        scr, first, self._terms = screen(rnd, current, self.lib, self.tests, diag)
         self.screens.append(scr)
-        self._terms = [] if scr.promoted else [c for c in changes if c.kind == "term"]
-        return changes if scr.promoted else [c for c in changes if c.kind != "term"]
+        return first
 
     def synthesized(self, rnd: int, current: Simulator, diag, factors: FactorSet, start: Round) -> list[Change]:
         return self._terms

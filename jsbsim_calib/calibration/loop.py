@@ -48,6 +48,7 @@ NOISE_FLOOR = 0.02       # smallest noise the likelihood assumes, in tolerances 
 MAX_EFFECTS = 4
 INERTIA_SCALES = (0.4, 2.5)  # the range a moment of inertia may be scaled over
 INERTIA_BRACKET = 0.25       # the search about a start estimate (+-)
+START_HALVINGS = 3           # a term's start halved toward neutral at most this often where the model breaks
 RULES = {"min_evidence_bic_decrease": MIN_EVIDENCE, "min_explained_share": MIN_EXPLAINED,
          "material_share_of_scale": MATERIAL, "min_cross_validated_gain": MIN_HELD_GAIN}
 
@@ -238,6 +239,7 @@ def _fit_effect(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet
         extra = ch.effect.as_factors()
         neutral = factors.with_extra(extra)
         start = neutral.updated({k: _inside(extra[k], v) for k, v in ch.start if k in extra})
+        start = _flying_start(ev, trial, neutral, start, list(extra), part) if ch.kind == "term" else start
         trial.set_factors(start)
         opts = ev.fit_options("candidate")
         if "prior_center" in opts:
@@ -248,6 +250,25 @@ def _fit_effect(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet
         trial.close()
         raise
     return trial, Fitted({k: fr.final[k] for k in extra}, dict(fr.stderr), fr.final)
+
+
+def _flying_start(ev: Evidence, trial: Simulator, neutral: FactorSet, start: FactorSet, names: Sequence[str],
+                  part: Sequence[int]) -> FactorSet:
+    """A term's linearized start, halved toward neutral (at most :data:`START_HALVINGS` times)
+    while the model cannot fly or trim there where it could at neutral: from a start where every
+    evaluation fails the fit has no gradient to follow (an elevator power that falls with the
+    flaps, estimated at 1.8 times the truth's, left the flaps-30 trim without elevator)."""
+    base = None
+    for _ in range(START_HALVINGS):
+        trial.set_factors(start)
+        broken = ev.rows(trial, part).penalty()
+        if base is None and broken > 0.0:
+            trial.set_factors(neutral)
+            base = ev.rows(trial, part).penalty()
+        if broken <= (base or 0.0):
+            return start
+        start = start.updated({k: neutral[k] + 0.5 * (start[k] - neutral[k]) for k in names})
+    return start
 
 
 def _fit_factor(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
