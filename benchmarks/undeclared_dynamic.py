@@ -12,6 +12,8 @@ model with those records. Cases (different axes and state products, one a moment
 * ``yaw_aileron_alpha``: Cn += -0.03 x aileron [deg] x alpha [rad] (adverse aileron yaw grows
   with angle of attack);
 * ``pitch_elevator_qbar``: Cm += -4e-4 x elevator [deg] x qbar [psf];
+* ``pitch_elevator_flaps``: Cm += 2e-4 x elevator [deg] x flaps [deg] (elevator power 25 % less
+  at flaps 20: the downwash at the tail);
 * ``ixx``: the roll moment of inertia x 2.
 
 A case is *found* when the loop adds a term on the truth's axis whose regressor is the truth's
@@ -46,6 +48,7 @@ REPO = Path(__file__).resolve().parents[1]
 CASES = {"roll_aileron_qbar": ("ROLL", "aileron x qbar", -4e-5, "roll"),
          "yaw_aileron_alpha": ("YAW", "aileron x alpha", -0.03, "yaw"),
          "pitch_elevator_qbar": ("PITCH", "elevator x qbar", -4e-4, "pitch"),
+         "pitch_elevator_flaps": ("PITCH", "elevator x flaps", 2e-4, "pitch"),
          "ixx": ("inertia", "ixx", 2.0, "roll")}
 COEFFICIENT = {"ROLL": "Cl", "YAW": "Cn", "PITCH": "Cm"}
 
