@@ -30,20 +30,15 @@ from __future__ import annotations
 import argparse
 import json
 import tempfile
-import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
-from jsbsim_calib.calibration.closeloop_dynamic import CHANNEL_AXIS, close_loop_dynamic
-from jsbsim_calib.data.flighttest import load_control_travel
-from jsbsim_calib.evaluation.evaluate_dynamic import load_recorded_tests
+from fault_recovery import REPO, campaign_close_loop       # this folder: a sibling benchmark's run
+from jsbsim_calib.calibration.closeloop_dynamic import CHANNEL_AXIS
 from jsbsim_calib.jsbsim.aircraft import moment_of_inertia, set_moment_of_inertia
-from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.xml import read, write
-from jsbsim_calib.synthetic.maneuvers import load_plan, synthesize_maneuvers
 from jsbsim_calib.synthetic.truth import UndeclaredTerm, root_copy, truth_copy
 
-REPO = Path(__file__).resolve().parents[1]
 # case -> (moment axis, regressor or inertia, coefficient or scale, the loop's axis)
 CASES = {"roll_aileron_qbar": ("ROLL", "aileron x qbar", -4e-5, "roll"),
          "yaw_aileron_alpha": ("YAW", "aileron x alpha", -0.03, "yaw"),
@@ -83,16 +78,7 @@ def found(case: str, res) -> tuple[str, float | None]:
 def one_run(case: str, seed: int) -> dict:
     axis, what, value, loop_axis = CASES[case]
     with tempfile.TemporaryDirectory() as d:
-        tmp = Path(d)
-        truth, root = truth_for(case, tmp)
-        with Simulator.from_dir(truth, root) as t:
-            synthesize_maneuvers(t, load_plan("level5"), tmp / "data", seed=seed)
-        with Simulator(REPO, "c172") as sim:
-            f = sim.geometry.control_travel_file
-            tests = load_recorded_tests(tmp / "data", load_control_travel(f) if f else None)
-            t0 = time.perf_counter()
-            res = close_loop_dynamic(sim, tests)
-            wall = time.perf_counter() - t0
+        res, wall = campaign_close_loop(*truth_for(case, Path(d)), seed, Path(d))
     name, got = found(case, res)
     err = abs(got / value - 1.0) if got is not None else None
     chans = [c for c in res.diagnosis_before if CHANNEL_AXIS.get(c) == loop_axis]

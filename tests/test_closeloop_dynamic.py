@@ -74,28 +74,28 @@ inputs = [{ shape = "doublet", channel = "rudder_deg", amplitude = 5.0, start_s 
 '''
 
 
+def doublets(prefix: str, kind: str, surface: str, amplitude: float, starts: dict[str, str]) -> str:
+    """6 s doublets of one surface at each start (title -> the start's TOML fields)."""
+    part60 = {"roll_doublet": "2.d.2", "pitch_doublet": "2.c.1"}[kind]
+    return "".join(f'''
+[[maneuver]]
+id = "{prefix}.{i}"
+kind = "{kind}"
+part60 = "{part60}"
+title = "{title}"
+duration_s = 6.0
+start = {{ pressure_alt_ft = 5500, weight_lb = 2400, cg_in = 42.0, {start} }}
+inputs = [{{ shape = "doublet", channel = "{surface}", amplitude = {amplitude}, start_s = 0.5, length_s = 1.0 }}]
+''' for i, (title, start) in enumerate(starts.items(), 1))
+
+
 # roll maneuvers at three dynamic pressures (about 17, 30 and 45 psf)
-ROLLS_BY_SPEED = "".join(f'''
-[[maneuver]]
-id = "Q.{i}"
-kind = "roll_doublet"
-part60 = "2.d.2"
-title = "Aileron doublet at {kt} kt"
-duration_s = 6.0
-start = {{ pressure_alt_ft = 5500, ktas = {kt}, weight_lb = 2400, cg_in = 42.0 }}
-inputs = [{{ shape = "doublet", channel = "aileron_deg", amplitude = 6.0, start_s = 0.5, length_s = 1.0 }}]
-''' for i, kt in enumerate((75, 100, 122), 1))
+ROLLS_BY_SPEED = doublets("Q", "roll_doublet", "aileron_deg", 6.0,
+                          {f"Aileron doublet at {kt} kt": f"ktas = {kt}" for kt in (75, 100, 122)})
 # elevator doublets clean and with the flaps down
-PITCH_BY_FLAPS = "".join(f'''
-[[maneuver]]
-id = "F.{i}"
-kind = "pitch_doublet"
-part60 = "2.c.1"
-title = "Elevator doublet at {kt} kt, flaps {fl}"
-duration_s = 6.0
-start = {{ pressure_alt_ft = 5500, kcas = {kt}, weight_lb = 2400, cg_in = 42.0, flaps_deg = {fl} }}
-inputs = [{{ shape = "doublet", channel = "elevator_deg", amplitude = 3.0, start_s = 0.5, length_s = 1.0 }}]
-''' for i, (kt, fl) in enumerate(((75, 0), (75, 30), (100, 0), (85, 20)), 1))
+PITCH_BY_FLAPS = doublets("F", "pitch_doublet", "elevator_deg", 3.0,
+                          {f"Elevator doublet at {kt} kt, flaps {fl}": f"kcas = {kt}, flaps_deg = {fl}"
+                           for kt, fl in ((75, 0), (75, 30), (100, 0), (85, 20))})
 
 
 def plan_text(maneuvers: str = MANEUVERS) -> str:
