@@ -77,3 +77,17 @@ def _synthetic_poh(sim, ds, indices, path: Path):
 @pytest.fixture
 def synthetic_poh():
     return _synthetic_poh
+
+
+# The longest tests (100-220 s each on 2 cores) start first: a long test that starts last leaves
+# the other worker idle at the end (longest-first scheduling; the order is the same on every
+# worker, as pytest-xdist requires).
+LONGEST_FIRST = ("test_real_c172_trims_without_pfactor_step_find_the_yaw_effect",
+                 "test_main_job_rewrites_the_committed_c172_byte_for_byte",
+                 "test_the_95_percent_bands_cover_the_truth_in_90_to_98_percent_of_50_campaigns",
+                 "test_a_pair_of_undeclared_effects_is_found")
+
+
+def pytest_collection_modifyitems(session, config, items):
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.originalname, len(rank)))
