@@ -20,9 +20,10 @@ flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.ev
    factors of the axis, its moment of inertia and the dictionary's terms (rates times states,
    alpha-dot, deflections times states). The :data:`FINALISTS` strongest named candidates are
    flown; the sparse selection of terms (one synthesized effect; a single term of a factor's
-   form is that factor) is flown with them when its equation error explains more than every
-   named candidate's (a control power or a damping that varies with a state: the factor alone
-   explains less than the term), otherwise only when no named candidate passes. Each finalist
+   form is that factor) is flown only when no named candidate passes; the strongest single
+   term flies with the named ones when its equation error explains more than each of theirs (a
+   control power or a damping that varies with a state: the factor alone explains less than
+   the term). Each finalist
    (:class:`Change`: an effect or term added, a factor refitted alone, an inertia scaled)
    is fitted alone on all the tests (residuals
    (model - data)/scale at every recorded sample of every response channel) and score it with
@@ -487,7 +488,7 @@ class Screen:
         return {"round": self.round, "axes": list(self.axes), "rows": self.rows,
                 "ranked": [r.as_dict() for r in self.ranked[:SCREEN_LISTED]],
                 "selection": self.selection.as_dict() if self.selection else None,
-                "finalists": self.finalists, "terms_flown_with_named": self.promoted, "wall_time_s": self.wall_time_s}
+                "finalists": self.finalists, "top_term_flown_with_named": self.promoted, "wall_time_s": self.wall_time_s}
 
 
 def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests,
@@ -509,12 +510,11 @@ def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests,
     top = _top_term(ranked, lin)
     if top is not None:
         changes.append(_synthesized_change(top, lin, tests, changes))
-    first = list({c.name: c for c in changes if c is not None}.values())
+    first, then = list({c.name: c for c in changes if c is not None}.values()), []
     sel = select(_terms_only(lin)) if lin.residual.size else None
-    then = [c for c in [_synthesized_change(sel, lin, tests, first)] if c is not None and c.name not in
-            {x.name for x in first}] if sel is not None and sel.terms else []
-    first += [c for c in then if c.kind != "term"]          # a selected factor's form: that factor, named
-    then = [c for c in then if c.kind == "term"]
+    chosen = _synthesized_change(sel, lin, tests, first) if sel is not None and sel.terms else None
+    if chosen is not None and chosen.name not in {c.name for c in first}:
+        (then if chosen.kind == "term" else first).append(chosen)     # a selected factor's form: that factor, named
     return Screen(rnd, tuple(axes), int(lin.residual.size), ranked, sel, [c.name for c in first + then],
                   time.perf_counter() - t0, top is not None), first, then
 
