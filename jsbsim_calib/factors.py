@@ -63,7 +63,7 @@ def _f(name, neutral, lower, upper, unit, steps, moves, applies_to, doc, baked=F
 # effect library (jsbsim_calib.calibration.effects). Stage 2b (jsbsim_calib.calibration.dynamic) runs the
 # dynamic steps, each axis its own fit against flown maneuvers.
 STEPS = ("steady", "fuel flow", "pitch", "control", "pfactor", "flaps", "steady refit", "roll dynamics",
-         "pitch dynamics", "yaw dynamics", "effect")
+         "pitch dynamics", "yaw dynamics", "engine dynamics", "effect")
 DYNAMIC_STEPS = ("roll dynamics", "pitch dynamics", "yaw dynamics")   # stage 2b (time domain)
 STAGE1 = ("steady", "steady refit")          # steps of the 16 coupled stage-1 factors (the refit: more)
 POH = ("roc_fpm", "pct_power", "rpm")        # what the stage-1 factors move
@@ -199,6 +199,13 @@ FACTORS: tuple[Factor, ...] = (
        ("elevator_deg", "pitch_deg", "phugoid_period_s", "max_pitch_rate_deg_s"),
        "pitching moment K alpha qbar S c (stiffness)",
        "adds K alpha to the pitching moment: + less stable (neutral point forward), less trim elevator per CL"),
+    # not in the method: the rotating inertia of engine and propeller, which sets how fast the RPM
+    # follows the throttle (Part 60 1.f.1); JSBSim reads it from the propeller file (<ixx>) at load
+    # and spins the whole drive with it, while the geometry gives the propeller's alone (JSBSim's
+    # c172 value): the crankshaft, flywheel and accessories are what the factor adds
+    _f("K_Ip", 1.0, 0.5, 3.0, "-", ("engine dynamics",), ("response_time_s",),
+       "propeller file: rotating inertia of propeller, crankshaft and accessories (<ixx>)",
+       "scales the rotating inertia: > 1 slower RPM response to the throttle", baked=True),
 )
 
 REGISTRY: dict[str, Factor] = {f.name: f for f in FACTORS}

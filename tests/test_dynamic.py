@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 import shutil
 import subprocess
 import sys
@@ -24,7 +25,7 @@ from jsbsim_calib.calibration.dynamic import (DYNAMIC_STEPS, amplitude_scale, dy
                                               identified_by, metric_residuals)
 from jsbsim_calib.data.dynamic_tests import DynamicMetric, load_dynamic_tests, parse_tolerance
 from jsbsim_calib.data.flighttest import load_control_travel
-from jsbsim_calib.evaluation.evaluate_dynamic import MetricResult, TestResult, evaluate_dynamic, peak_rate, phugoid, recorded, \
+from jsbsim_calib.evaluation.evaluate_dynamic import MetricResult, TestResult, evaluate_dynamic, fly_test, peak_rate, phugoid, recorded, \
     steady_roll_rate
 from jsbsim_calib.core.errors import DataError
 from jsbsim_calib.jsbsim.aircraft import set_factor_values
@@ -170,7 +171,10 @@ def test_a_nan_never_passes():
 # --------------------------------------------------------------------------- the real summary data
 def test_dynamic_tests_load_with_their_assumptions(tests_real):
     ids = {t.id: t for t in tests_real}
-    assert set(ids) == {"C.19", "C.21", "C.23", "C.25", "C.27", "C.31", "C.33", "C.56", "C.58", "C.60"}
+    assert set(ids) == {"C.12", "C.19", "C.21", "C.23", "C.25", "C.27", "C.31", "C.33", "C.56", "C.58", "C.60"}
+    # 1.f.1: the alternative data's range "2 - 4" s is 3 +- 1 s; 1.f.2 (a ground test) is not flown
+    assert ids["C.12"].kind == "engine_acceleration" and ids["C.12"].initial == ""
+    assert (ids["C.12"].metrics[0].measured, ids["C.12"].metrics[0].tol()) == (3.0, 1.0)
     assert ids["C.56"].initial == "C.55" and {m.name for m in ids["C.56"].metrics} == {"phugoid_period_s",
                                                                                        "phugoid_damping"}
     assert ids["C.56"].metrics[0].tol() == pytest.approx(3.5)
@@ -189,6 +193,33 @@ def test_a_results_row_without_initial_condition_is_named(tmp_path):
     with pytest.raises(DataError, match="C.99.*no snapshot row C.98"):
         load_dynamic_tests(res, REPO / "data/c172_flight_test_snapshots.csv",
                            load_control_travel(REPO / "data/c172_control_travel.csv"))
+
+
+def test_an_engine_range_that_is_not_a_range_is_named(tmp_path):
+    res = tmp_path / "results.csv"
+    res.write_text("table,title,metric,tolerance,flight_test\nC.12,1.f.1 Engine Acceleration,ΔT,± 1 sec,fast\n")
+    with pytest.raises(DataError, match=r"line 2 \(C.12\), column 'flight_test'.*'fast' is not a range"):
+        load_dynamic_tests(res, REPO / "data/c172_flight_test_snapshots.csv",
+                           load_control_travel(REPO / "data/c172_control_travel.csv"))
+
+
+def test_the_engine_step_refits_the_rotating_inertia_from_the_rpm_response(sim, tests_real):
+    """A truth with K_Ip = 1.8 sets the response time the engine step fits; from K_Ip = 1 it
+    finds the truth again (the step prior pulls a little toward its start). Recorded time
+    histories hold no RPM channel: the step does not fly them."""
+    eng = next(t for t in tests_real if t.kind == "engine_acceleration")
+    step = next(s for s in DYNAMIC_STEPS if s.name == "engine dynamics")
+    start = sim.factors
+    try:
+        sim.set_factors(start.replace(K_Ip=1.8))
+        truth = fly_test(sim, eng).metrics[0].model
+        assert 2.0 < truth < 3.0
+        measured = replace(eng, metrics=(replace(eng.metrics[0], measured=truth),))
+        out = dynamic_step(sim, step, [measured], {}, start.replace(K_Ip=1.0))
+        assert out.final["K_Ip"] == pytest.approx(1.8, rel=0.03)
+        assert dynamic_step(sim, step, [recorded("e", "engine_acceleration", fly(sim, eng.maneuver))], {}, start) is None
+    finally:
+        sim.set_factors(start)
 
 
 def test_real_dynamic_tests_fly_and_yaw_damping_is_not_decided_by_assumed_amplitudes(sim, tests_real):

@@ -77,6 +77,7 @@ def test_a_written_plan_reads_back_to_the_same_maneuvers(tmp_path):
 def planned(tmp_path_factory):
     """``plan c172`` on the committed aircraft (the data in hand: its flight-test results table)."""
     out = tmp_path_factory.mktemp("plan")
+    (out / "flight_card_P_99_phugoid.png").write_bytes(b"an earlier card's figure")
     before = sorted(p.name for p in (REPO / "aircraft" / "c172").iterdir())
     code = main(["--root", str(REPO), "--quiet", "plan", "c172", "--out", str(out)])
     after = sorted(p.name for p in (REPO / "aircraft" / "c172").iterdir())
@@ -95,6 +96,7 @@ def test_plan_writes_a_card_a_plan_and_scripts_and_leaves_the_aircraft_alone(pla
         assert m.id in md and m.id in page
         assert (out / "scripts" / f"{re.sub('[.]', '_', m.id)}_{m.kind}.xml").is_file()
     assert md.count("![") == page.count("<img ") == len(plan.maneuvers)
+    assert sorted(p.name for p in out.glob("flight_card_*.png")) == sorted(re.findall(r"\((flight_card_\S+\.png)\)", md))
     srcs = re.findall(r'src="([^"]*)"', page)
     assert srcs and all(s.startswith("data:image/png;base64,") for s in srcs)    # self-contained
     assert "K_Cmq" in md and "Stop the maneuver" in md

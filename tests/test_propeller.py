@@ -282,8 +282,9 @@ def test_constant_speed_tables_increase_with_blade_angle(cs_tables: PropellerTab
 
 def test_the_tables_take_the_registrys_propeller_factors(tables: PropellerTables) -> None:
     """physics.propeller names the factors its tables take without reading the factor registry:
-    the two lists agree, in order, and a missing value is refused."""
-    assert TABLE_FACTORS == PROPELLER_FACTORS
+    they are the registry's propeller factors but the rotating inertia (K_Ip, the file's <ixx>),
+    in order, and a missing value is refused."""
+    assert TABLE_FACTORS + ("K_Ip",) == PROPELLER_FACTORS
     with pytest.raises(ValueError, match="K_CQ_quad"):
         apply_factors(tables, {n: 0.0 for n in TABLE_FACTORS[:-1]})
 

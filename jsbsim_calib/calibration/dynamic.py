@@ -47,6 +47,7 @@ class DynamicStep:
     hold: tuple[Residual, ...] = ()        # predictions held at the step's start
     doc: str = ""
     names: tuple[str, ...] = ()            # factors, when not the registry's of the step (the joint refit)
+    recorded: bool = True                  # flies recorded time histories of its kinds (their channels)
 
     @property
     def factors(self) -> tuple[str, ...]:
@@ -69,6 +70,10 @@ DYNAMIC_STEPS: tuple[DynamicStep, ...] = (
                 hold=(Residual("snapshot", "all", "rudder_deg"),),
                 doc="yaw damping: peak yaw rate after the pedal pulses (amplitude free within its plausible "
                     "range); the trim rudders are held"),
+    DynamicStep("engine dynamics", ("engine_acceleration",), recorded=False,
+                doc="rotating inertia of engine and propeller: the RPM's 10-90 % response time after the throttle "
+                    "step (1.f.1) / 1 s, from the middle of the FAA's alternative data (2-4 s); recorded time "
+                    "histories hold no RPM channel, so only the summary test is flown"),
 )
 
 
@@ -174,7 +179,7 @@ def dynamic_step(sim: Simulator, step: DynamicStep, tests: Sequence[DynamicTest 
                  start: FactorSet, *, progress: Callable[[str], None] | None = None,
                  max_nfev: int | None = MAX_NFEV, executor: Executor = SERIAL) -> FitResult | None:
     """One axis: fit the step's identified factors; None when it has no test to fly."""
-    mine = [t for t in tests if t.kind in step.kinds]
+    mine = [t for t in tests if t.kind in step.kinds and (step.recorded or not isinstance(t, RecordedTest))]
     if not mine:
         return None
     sim.set_factors(start)

@@ -16,6 +16,9 @@ built from the Part 60 procedure and stated assumptions:
   roll the result's sign gives ("about one-third of maximum roll controller travel", taken
   from neutral to the stop), held; the steady roll rate is the mean roll rate 1 to 3 s after
   the step.
+* engine acceleration (1.f.1): no flight-test initial condition and no recorded response, only
+  the FAA's alternative data, a range ("2 - 4" s, 10 % to 90 % of the RPM response); flown at
+  :data:`ENGINE_CONDITION`, the range's middle is the value and its half-width the tolerance.
 * phugoid (2.c.9.b): column aft (elevator :data:`PHUGOID_ELEVATOR_DEG` trailing edge up)
   for :data:`PHUGOID_HOLD_S`, which slows the aircraft by about 10 kt, then released (stick
   fixed: the simulator has no reversible controls, as the method notes); period and damping
@@ -59,7 +62,19 @@ KINDS = {   # result metric text -> (kind, metric name, unit, channel, surface)
     "Steady-state Roll Rate": ("roll_step", "roll_rate_deg_s", "deg/s", "p_deg_s", "aileron"),
     "Period": ("phugoid", "phugoid_period_s", "s", "kcas", "elevator"),
     "Damping Ratio": ("phugoid", "phugoid_damping", "-", "kcas", "elevator"),
+    "ΔT": ("engine_acceleration", "response_time_s", "s", "rpm", "throttle"),
 }
+# engine acceleration: no flight data; flown at a stated approach condition (the method's note)
+ENGINE_CONDITION = Condition(pressure_alt_ft=3000.0, weight_lb=2400.0, kcas=70.0, flaps_deg=20.0,
+                             mode="full_throttle", throttle=0.0, mixture="climb")
+ENGINE_STEP_S, ENGINE_RAMP_S, ENGINE_WINDOW_S = 1.0, 0.1, 10.0
+ENGINE_ASSUMPTIONS = (
+    "no flight-test initial condition: trimmed at 3,000 ft, 2,400 lb, POH CG, flaps 20, 70 KCAS with the "
+    "throttle at idle (a descent), ISA, full rich",
+    f"throttle idle -> full in {ENGINE_RAMP_S:g} s at {ENGINE_STEP_S:g} s, stick fixed",
+    "response: engine RPM from its idle value to the highest value within "
+    f"{ENGINE_WINDOW_S:g} s; T_i, T_t from the start of the throttle movement",
+)
 # the surface a positive body rate asks for, data sign (pitch up: trailing edge up; roll right:
 # right aileron up; yaw right: rudder trailing edge right)
 POSITIVE_RATE_SURFACE = {"elevator": +1.0, "aileron": +1.0, "rudder": +1.0}
@@ -153,6 +168,40 @@ def _travel_deg(travel: dict[str, ControlAxis], surface: str, data_sign: float) 
     return ax.surface_max_deg if data_sign > 0 else -ax.surface_min_deg
 
 
+def engine_maneuver(start: Condition = ENGINE_CONDITION) -> Maneuver:
+    """1.f.1: from the trim at idle, the throttle idle -> full (absolute), stick fixed."""
+    t0, r = ENGINE_STEP_S, ENGINE_RAMP_S
+    inp = Input("throttle_norm", (0.0, t0, t0 + r), (start.throttle, start.throttle, 1.0), relative=False)
+    return Maneuver("part60_1f1_engine_acceleration", start, t0 + ENGINE_WINDOW_S, (inp,),
+                    title="1.f.1 Engine acceleration")
+
+
+def range_value(text) -> tuple[float, float]:
+    """A range '2 - 4' -> (3.0, 1.0): its middle and half-width; anything else (NaN, NaN)."""
+    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*-\s*(\d+(?:\.\d+)?)\s*", str(text))
+    if not m:
+        return math.nan, math.nan
+    lo, hi = float(m.group(1)), float(m.group(2))
+    return (0.5 * (lo + hi), 0.5 * (hi - lo)) if hi > lo else (math.nan, math.nan)
+
+
+def _engine_test(tid: str, i: int, row: pd.Series, file: str, problems: list) -> DynamicTest | None:
+    """The engine acceleration row: its range as the value and tolerance (module doc). The
+    deceleration (1.f.2) is a ground test with the brakes set: not flown (Part 60's report says so)."""
+    title = str(row["title"]).strip()
+    if not title.startswith("1.f.1"):
+        return None
+    value, half = range_value(row["flight_test"])
+    if not math.isfinite(value):
+        problems.append(Problem(f"{file}: line {i + 2} ({tid}), column 'flight_test'",
+                                f"'{row['flight_test']}' is not a range such as '2 - 4'"))
+        return None
+    metric = DynamicMetric("response_time_s", value, half, False, "s", False, _number(row.get("thesis_model")))
+    return DynamicTest(tid, "", title.split(" ")[0], title, "engine_acceleration", engine_maneuver(), (metric,),
+                       "rpm", ENGINE_ASSUMPTIONS + (f"flight test '{row['flight_test']}': its middle, "
+                                                    f"{value:g} +- {half:g} s",))
+
+
 def _maneuver(kind: str, test_id: str, start: Condition, surface: str, measured: float,
               travel: dict[str, ControlAxis], title: str) -> tuple[Maneuver, tuple[str, ...]]:
     name = f"{test_id.replace('.', '_')}_{kind}"
@@ -201,6 +250,10 @@ def load_dynamic_tests(results: str | Path, snapshots: str | Path, travel: dict[
         grouped.setdefault(str(r["table"]).strip(), []).append((i, r, kind))
     tests = []
     for tid, rows in grouped.items():
+        if rows[0][2][0] == "engine_acceleration":
+            test = _engine_test(tid, rows[0][0], rows[0][1], results.name, problems)
+            tests += [test] if test else []
+            continue
         init = _initial_id(tid)
         where = f"{snapshots.name}: row {init} (initial condition of {tid})"
         if init not in snap_rows:

@@ -36,8 +36,7 @@ import pandas as pd
 
 from ..core.errors import DataError, Problem
 from ..flight.condition import Condition
-from ..jsbsim.trajectory import Input, Maneuver
-from .dynamic_tests import RESULT_COLUMNS, read_results
+from .dynamic_tests import ENGINE_ASSUMPTIONS, ENGINE_CONDITION, RESULT_COLUMNS, read_results
 from .schemas import read_csv_checked
 
 PASS, FAIL, NA = "PASS", "FAIL", "n/a"
@@ -371,19 +370,6 @@ STATIC_KINDS = {"1.c.1": "climb", "supp. flaps climb": "climb", "2.c.5": "trim",
 IC_COLUMNS = ("weight_lb", "cg_in", "flaps_deg", "pressure_alt_ft", "ktas", "vs_fpm", "pitch_deg", "roll_deg",
               "elevator_deg", "aileron_deg", "rudder_deg", "throttle_norm")
 
-# engine acceleration: no flight data; flown at a stated approach condition (the method's note)
-ENGINE_CONDITION = Condition(pressure_alt_ft=3000.0, weight_lb=2400.0, kcas=70.0, flaps_deg=20.0,
-                             mode="full_throttle", throttle=0.0, mixture="climb")
-ENGINE_STEP_S, ENGINE_RAMP_S, ENGINE_WINDOW_S = 1.0, 0.1, 10.0
-ENGINE_ASSUMPTIONS = (
-    "no flight-test initial condition: trimmed at 3,000 ft, 2,400 lb, POH CG, flaps 20, 70 KCAS with the "
-    "throttle at idle (a descent), ISA, full rich",
-    f"throttle idle -> full in {ENGINE_RAMP_S:g} s at {ENGINE_STEP_S:g} s, stick fixed",
-    "response: engine RPM from its idle value to the highest value within "
-    f"{ENGINE_WINDOW_S:g} s; T_i, T_t from the start of the throttle movement",
-)
-
-
 @dataclass(frozen=True)
 class Reference:
     """A flight-test value as the results file gives it: a number (``650 ± 32``: value and
@@ -500,14 +486,6 @@ def snapshot_values(snapshots: str | Path) -> dict[str, dict[str, float]]:
     if "table" not in snap:
         raise DataError(snapshots, [Problem("column 'table'", "missing")])
     return {str(r["table"]).strip(): _ic_values(r) for _, r in snap.iterrows()}
-
-
-def engine_maneuver(start: Condition = ENGINE_CONDITION) -> Maneuver:
-    """1.f.1: from the trim at idle, the throttle idle -> full (absolute), stick fixed."""
-    t0, r = ENGINE_STEP_S, ENGINE_RAMP_S
-    inp = Input("throttle_norm", (0.0, t0, t0 + r), (start.throttle, start.throttle, 1.0), relative=False)
-    return Maneuver("part60_1f1_engine_acceleration", start, t0 + ENGINE_WINDOW_S, (inp,),
-                    title="1.f.1 Engine acceleration")
 
 
 # --------------------------------------------------------------------------- flight-test files

@@ -66,6 +66,8 @@ METRICS: dict[str, Metric] = {
                                   doc="peak roll rate after a wheel pulse"),
     "max_yaw_rate_deg_s": Metric("max_yaw_rate_deg_s", 0.20, relative=True, unit="deg/s",
                                  doc="peak yaw rate after a pedal pulse"),
+    "response_time_s": Metric("response_time_s", 1.0, unit="s",
+                              doc="engine acceleration: RPM from 10 % to 90 % of its response to the throttle"),
 }
 
 

@@ -15,7 +15,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicMetric,
+from ..data.dynamic_tests import (ENGINE_STEP_S, PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicMetric,
                                  DynamicTest)
 from ..data.flighttest import ControlAxis, to_jsbsim_sign
 from ..data.timehistory import SURFACE_OF, TimeHistory, load_time_histories, maneuver_from_time_history
@@ -69,6 +69,38 @@ def phugoid(t: np.ndarray, speed: np.ndarray, release_s: float) -> tuple[float, 
     return period, delta / math.sqrt(4 * math.pi ** 2 + delta ** 2)
 
 
+def _crossing(t: np.ndarray, x: np.ndarray, level: float, rising: bool, i0: int) -> float:
+    """First time from index ``i0`` at which x reaches ``level`` (linear between samples)."""
+    d = (x[i0:] - level) * (1.0 if rising else -1.0)
+    k = np.flatnonzero(d >= 0)
+    if not k.size:
+        return math.nan
+    j = i0 + int(k[0])
+    if j == i0 or x[j] == x[j - 1]:
+        return float(t[j])
+    return float(t[j - 1] + (t[j] - t[j - 1]) * (level - x[j - 1]) / (x[j] - x[j - 1]))
+
+
+def response_times(t: np.ndarray, x: np.ndarray, start_s: float) -> tuple[float, float]:
+    """(T_i, T_t): from ``start_s`` to 10 % and to 90 % of the total response, the change from
+    the value at ``start_s`` to the extreme reached afterwards (its direction: the larger)."""
+    if not math.isfinite(start_s):
+        return math.nan, math.nan
+    i0 = int(np.searchsorted(t, start_s))
+    seg = x[i0:]
+    if seg.size < 2 or not np.isfinite(seg).all():
+        return math.nan, math.nan
+    x0 = seg[0]
+    hi, lo = np.max(seg) - x0, x0 - np.min(seg)
+    total = hi if hi >= lo else -lo
+    if total == 0:
+        return math.nan, math.nan
+    rising = total > 0
+    ti = _crossing(t, x, x0 + 0.1 * total, rising, i0)
+    tt = _crossing(t, x, x0 + 0.9 * total, rising, i0)
+    return ti - start_s, tt - start_s
+
+
 def measure(test: DynamicTest, tr: Trajectory) -> dict[str, float]:
     """The test's metrics on a flown trace."""
     t, x = tr.time_s, tr[test.channel]
@@ -76,6 +108,9 @@ def measure(test: DynamicTest, tr: Trajectory) -> dict[str, float]:
         period, zeta = phugoid(t, x, PHUGOID_HOLD_S + 0.6)
         return {"phugoid_period_s": period, "phugoid_damping": zeta}
     m = test.metrics[0]
+    if test.kind == "engine_acceleration":
+        ti, tt = response_times(t, x, ENGINE_STEP_S)
+        return {m.name: tt - ti}
     if test.kind == "roll_step":
         return {m.name: steady_roll_rate(t, x, ROLL_STEP_START_S)}
     return {m.name: peak_rate(t, x, PULSE_START_S, math.copysign(1.0, m.measured))}

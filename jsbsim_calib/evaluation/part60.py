@@ -18,20 +18,19 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..data.dynamic_tests import (PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S, DynamicTest,
-                                 load_dynamic_tests)
+from ..data.dynamic_tests import (ENGINE_STEP_S, PHUGOID_HOLD_S, PULSE_START_S, ROLL_STEP_START_S, ROLL_WINDOW_S,
+                                 DynamicTest, engine_maneuver, load_dynamic_tests)
 from ..data.flighttest import load_control_travel, to_data_sign
-from ..data.part60_tests import (CATALOGUE, CATALOGUE_BY_ID, ENGINE_STEP_S, FAIL, NA, PASS, MetricVerdict, Part60Test,
-                          StaticCase, catalogue_test, classify_files, combine, engine_maneuver, judge,
+from ..data.part60_tests import (CATALOGUE, CATALOGUE_BY_ID, FAIL, NA, PASS, MetricVerdict, Part60Test,
+                          StaticCase, catalogue_test, classify_files, combine, judge,
                           load_static_cases, snapshot_values)
 from ..data.timehistory import load_time_histories
-from .evaluate_dynamic import fly_test
+from .evaluate_dynamic import fly_test, response_times
 from ..core.errors import CalibError, DataError, Problem
 from ..flight.condition import Condition, TrimResult
 from ..jsbsim.simulator import Simulator
 from ..jsbsim.trajectory import Trajectory, fly
-from .timehistory_compare import (ChannelError, TimeHistoryComparison, band_metric, compare_time_history,
-                                  response_times, unit_of)
+from .timehistory_compare import ChannelError, TimeHistoryComparison, band_metric, compare_time_history, unit_of
 
 IC_UNITS = {"weight_lb": "lb", "cg_in": "in", "flaps_deg": "deg", "pressure_alt_ft": "ft", "ktas": "kt",
             "kcas": "kt", "vs_fpm": "ft/min", "pitch_deg": "deg", "roll_deg": "deg", "elevator_deg": "deg",
@@ -366,7 +365,8 @@ def summary_cases(sim: Simulator, data: SummaryData, say, notes: list[str]) -> l
     """Every flyable case of the summary files; the rows of tests the model cannot do go to
     ``notes``."""
     static = load_static_cases(data.results, data.snapshots)
-    dynamic = load_dynamic_tests(data.results, data.snapshots, load_control_travel(data.travel))
+    dynamic = [t for t in load_dynamic_tests(data.results, data.snapshots, load_control_travel(data.travel))
+               if t.kind != "engine_acceleration"]      # 1.f.1: a static case here, with T_i and T_t
     ics = snapshot_values(data.snapshots)
     out = []
     for case in static:

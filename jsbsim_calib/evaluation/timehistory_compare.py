@@ -37,7 +37,7 @@ from ..data.flighttest import to_data_sign
 from ..data.part60_tests import INPUT_CHANNEL, METRIC_CHANNEL, NA, MetricVerdict, Part60Test, catalogue_test, judge
 from ..data.timehistory import DEPARTURE, TimeHistory, input_times, maneuver_from_time_history
 from ..jsbsim.trajectory import RATE_HZ, Hold, Maneuver, Trajectory, fly
-from .evaluate_dynamic import peak_rate, steady_roll_rate
+from .evaluate_dynamic import peak_rate, response_times, steady_roll_rate
 
 CHANNELS = ("pressure_alt_ft", "kcas", "ktas", "vs_fpm", "pitch_deg", "roll_deg", "heading_deg", "p_deg_s",
             "q_deg_s", "r_deg_s", "alpha_deg", "beta_deg", "nz_g", "elevator_deg", "aileron_deg", "rudder_deg",
@@ -90,38 +90,6 @@ class Trace:
 
 
 # --------------------------------------------------------------------------- measurements
-def _crossing(t: np.ndarray, x: np.ndarray, level: float, rising: bool, i0: int) -> float:
-    """First time from index ``i0`` at which x reaches ``level`` (linear between samples)."""
-    d = (x[i0:] - level) * (1.0 if rising else -1.0)
-    k = np.flatnonzero(d >= 0)
-    if not k.size:
-        return math.nan
-    j = i0 + int(k[0])
-    if j == i0 or x[j] == x[j - 1]:
-        return float(t[j])
-    return float(t[j - 1] + (t[j] - t[j - 1]) * (level - x[j - 1]) / (x[j] - x[j - 1]))
-
-
-def response_times(t: np.ndarray, x: np.ndarray, start_s: float) -> tuple[float, float]:
-    """(T_i, T_t): from ``start_s`` to 10 % and to 90 % of the total response, the change from
-    the value at ``start_s`` to the extreme reached afterwards (its direction: the larger)."""
-    if not math.isfinite(start_s):
-        return math.nan, math.nan
-    i0 = int(np.searchsorted(t, start_s))
-    seg = x[i0:]
-    if seg.size < 2 or not np.isfinite(seg).all():
-        return math.nan, math.nan
-    x0 = seg[0]
-    hi, lo = np.max(seg) - x0, x0 - np.min(seg)
-    total = hi if hi >= lo else -lo
-    if total == 0:
-        return math.nan, math.nan
-    rising = total > 0
-    ti = _crossing(t, x, x0 + 0.1 * total, rising, i0)
-    tt = _crossing(t, x, x0 + 0.9 * total, rising, i0)
-    return ti - start_s, tt - start_s
-
-
 def signed_peak(t: np.ndarray, x: np.ndarray, start_s: float, sign: float | None = None) -> float:
     """The largest change from the value at ``start_s``, signed; ``sign`` fixes the direction
     (a response the other way is then negative): :func:`jsbsim_calib.evaluation.evaluate_dynamic.peak_rate`."""

@@ -56,12 +56,13 @@ def engine_xml(p: PistonParams, spec_note: str) -> Tree:
 def propeller_xml(name: str, tables: PropellerTables, spec: PropellerSpec, factors: Mapping[str, float],
                   note: str = "") -> Tree:
     """A propeller file: its tables (1-D in J for a fixed pitch, J x blade angle for a
-    constant-speed propeller, with its pitch and governor limits) and the baked factors."""
+    constant-speed propeller, with its pitch and governor limits) and the baked factors
+    (``K_Ip`` scales the rotating inertia ``<ixx>`` of the geometry's propeller)."""
     root = element("propeller", name=name)
     root.text = "\n"
     comment(root, note)
     comment(root, f"{BAKED_NOTE} " + ", ".join(f"{k}={fmt(v, FACTOR_DIGITS)}" for k, v in factors.items()))
-    sub(root, "ixx", fmt(spec.ixx_kgm2 / (SLUG * FT**2)), unit="SLUG*FT2")
+    sub(root, "ixx", fmt(spec.ixx_kgm2 / (SLUG * FT**2) * factors.get("K_Ip", 1.0)), unit="SLUG*FT2")
     sub(root, "diameter", fmt(spec.diameter_m / IN), unit="IN")
     sub(root, "numblades", str(spec.blades))
     sub(root, "gearratio", "1")

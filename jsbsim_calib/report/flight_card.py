@@ -199,9 +199,12 @@ def html_page(proposal: Proposal, figures: dict[str, bytes]) -> str:
 
 
 def write_flight_card(proposal: Proposal, out_dir: Path | str) -> dict[str, Path]:
-    """flight_card.md with its PNGs, and flight_card.html (self-contained), in ``out_dir``."""
+    """flight_card.md with its PNGs, and flight_card.html (self-contained), in ``out_dir``; the
+    figures of an earlier card there are removed (a new plan picks other maneuvers)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    for old in out_dir.glob("flight_card_*.png"):
+        old.unlink()
     names, pngs = {}, {}
     for p in proposal.picks:
         m = p.scored.candidate.spec

@@ -360,7 +360,8 @@ def plot_log(log: G1000Log, segments: Sequence[Segment], *, model: pd.DataFrame 
 
 
 DYNAMIC_LABELS = {"q_deg_s": "pitch rate [deg/s]", "p_deg_s": "roll rate [deg/s]", "r_deg_s": "yaw rate [deg/s]",
-                  "kcas": "KCAS [kt]"}
+                  "kcas": "KCAS [kt]", "rpm": "engine speed [rpm]"}
+OFF_AXIS = {"phugoid": "period", "engine_acceleration": "RPM response time (10-90 %)"}   # metrics not on the y axis
 
 
 def dynamic_response(results: Mapping[str, object], ax=None, band: np.ndarray | None = None) -> Figure:
@@ -382,14 +383,15 @@ def dynamic_response(results: Mapping[str, object], ax=None, band: np.ndarray | 
         ax.fill_between(last.trajectory.time_s, y - band, y + band, color=STYLES["calibrated"]["color"], alpha=0.2,
                         lw=0, label="95 % band")
     m = test.metrics[0]
-    if test.kind != "phugoid":
+    if test.kind not in OFF_AXIS:
         ax.axhline(m.measured, color="k", lw=1.0, ls="-.", label=f"flight test {m.measured:g} {m.unit}")
         tol = m.tol()
         if math.isfinite(tol):
             ax.axhspan(m.measured - tol, m.measured + tol, color="k", alpha=0.08, lw=0,
                        label=f"tolerance {m.tolerance_text()}")
     else:
-        ax.set_title(f"flight test: period {m.measured:g} s", fontsize=9)
+        tol = f" +- {m.tol():g}" if math.isfinite(m.tol()) else ""
+        ax.set_title(f"flight test: {OFF_AXIS[test.kind]} {m.measured:g}{tol} {m.unit}", fontsize=9)
     ax.set_xlabel("maneuver time [s]")
     ax.set_ylabel(DYNAMIC_LABELS.get(test.channel, test.channel))
     ax.legend(fontsize=7, loc="best")

@@ -47,6 +47,7 @@ TARGETS: tuple[Target, ...] = (
     Target("flap_climb", "roc_fpm", "within_pct", 100.0),
     Target("dynamic", "phugoid_period_s", "mape", 5.0),          # stage 2b (issue): within 5 % of the flight test
     Target("dynamic", "roll_rate_deg_s", "within_pct", 100.0),
+    Target("dynamic", "response_time_s", "within_pct", 100.0),   # 1.f.1 engine acceleration: 2-4 s
 )
 
 
