@@ -131,20 +131,22 @@ def test_a_share_within_tolerance_gets_the_range_its_bands_allow():
 
 
 @pytest.mark.slow
-def test_the_95_percent_bands_cover_the_truth_in_90_to_98_percent_of_50_campaigns(repo, tmp_path):
-    """Issue 28: 50 synthetic snapshot campaigns of a truth C172 (elevator gearing and offset
-    moved), each refitted by the committed model and its bands drawn. Measured: 97.1 % of 795
-    rows, 47 of 50 campaigns with every row covered, the factors' intervals 48 and 49 of 50
-    (before the reduced chi-square left out the rows no factor moves: 87 %, 33, 39 and 41)."""
+def test_the_95_percent_bands_cover_the_truth_in_12_campaigns(repo, tmp_path):
+    """Issue 28: synthetic snapshot campaigns of a truth C172 (elevator gearing and offset
+    moved), each refitted by the committed model and its bands drawn. The sweep over 50
+    campaigns is a benchmark (``benchmarks/band_coverage.py``: 97.1 % of 795 rows, 47 of 50
+    campaigns with every row covered, the intervals 48 and 49 of 50); here 12 of them. Measured:
+    91.7 % of 192 rows, 10 of 12 campaigns whole, each interval 11 of 12. Bands too narrow
+    lose rows (below 85 %); bands far too wide cover every row of every campaign."""
     import warnings
 
     from jsbsim_calib.synthetic.coverage import campaigns
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        runs = campaigns(repo, "c172", {"K_de_slope": 1.25, "K_de_offset": -1.0}, range(50), tmp_path)
+        runs = campaigns(repo, "c172", {"K_de_slope": 1.25, "K_de_offset": -1.0}, range(12), tmp_path)
     whole = sum(bool(c.covered.all()) for c in runs)
-    assert 45 <= whole <= 49, whole                      # 90-98 % of the campaigns
+    assert 9 <= whole <= 11, whole
     for n in ("K_de_slope", "K_de_offset"):
-        assert 45 <= sum(c.inside[n] for c in runs) <= 49, n
+        assert sum(c.inside[n] for c in runs) >= 10, n
     rows = np.concatenate([c.covered for c in runs])
-    assert 0.90 <= rows.mean() <= 0.99 and rows.size > 700
+    assert 0.85 <= rows.mean() <= 0.99 and rows.size == 192, (rows.mean(), rows.size)
