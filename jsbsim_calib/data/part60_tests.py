@@ -36,7 +36,7 @@ import pandas as pd
 
 from ..core.errors import DataError, Problem
 from ..flight.condition import Condition
-from .dynamic_tests import ENGINE_ASSUMPTIONS, ENGINE_CONDITION, RESULT_COLUMNS, read_results
+from .dynamic_tests import ENGINE_ASSUMPTIONS, ENGINE_CONDITION, RESULT_COLUMNS, range_value, read_results
 from .schemas import read_csv_checked
 
 PASS, FAIL, NA = "PASS", "FAIL", "n/a"
@@ -402,7 +402,7 @@ class StaticCase:
 def parse_reference(metric: str, text) -> Reference:
     """'650 ± 32' -> 650 (scatter 32); '82%' -> 82; a range '2 - 4' or '' -> NaN (the text kept)."""
     t = "" if text is None else str(text).strip()
-    if not t or t.lower() == "nan" or re.fullmatch(r"-?\d+(?:\.\d+)?\s*-\s*\d+(?:\.\d+)?", t):
+    if not t or t.lower() == "nan" or math.isfinite(range_value(t)[0]):
         return Reference(metric, math.nan, "" if t.lower() == "nan" else t)
     parts = t.replace("%", "").split("±")
     try:
