@@ -151,7 +151,7 @@ def build(name: str, root: Path = Path("."), *, factors: FactorSet | None = None
         str(paths.aircraft_xml): aircraft_bytes(copy(aircraft), factors, stamp_body=True, calibration=calibration),
         str(paths.engine_xml): tostring(engine_xml(
             piston, f"{e.model}: {e.max_power_w / 745.69987:g} hp at {e.rated_rpm:g} rpm (from aircraft/{name}/geometry.toml)")),
-        str(paths.propeller_xml): propeller_bytes(paths, Propeller(geom, bem, name), factors),
+        str(paths.propeller_xml): propeller_bytes(paths.propeller_file, Propeller(geom, bem, name), factors),
         str(paths.propeller_bem): bem_csv_text(bem).encode(),
         str(paths.init_xml): init_xml(geom).encode(),
         str(paths.script): script_xml(geom, bem).encode(),

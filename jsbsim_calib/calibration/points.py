@@ -64,6 +64,7 @@ class PointSet:
     conditions: list[Condition]
     metrics: tuple[str, ...]
     scales: Mapping[str, float] = field(default_factory=dict)   # metric -> share of its tolerance (default 1)
+    _targets: dict = field(default_factory=dict, init=False, repr=False, compare=False)   # read once (target)
 
     @classmethod
     def from_dataset(cls, ds: Dataset, sim: Simulator, indices: Sequence[int] | None = None, metrics=None,
@@ -73,7 +74,9 @@ class PointSet:
         return cls(ds.kind, ds, idx, [conds[i] for i in idx], tuple(metrics or ds.metrics), dict(scales or {}))
 
     def target(self, i: int, m: str) -> float:
-        return float(self.dataset.frame.iloc[self.indices[i]][m])
+        if (i, m) not in self._targets:         # read once: a fit asks for each thousands of times
+            self._targets[i, m] = float(self.dataset.frame[m].iat[self.indices[i]])
+        return self._targets[i, m]
 
 
 def trim_points(sim: Simulator, ps: PointSet) -> list[TrimResult]:

@@ -116,6 +116,52 @@ def _solve_vector(A: list[list[float]], x: list[float]) -> list[float]:
     return x
 
 
+def lu_factor(A) -> tuple:
+    """The elimination of :func:`_solve_vector` recorded, for many right-hand sides of one matrix
+    (a trim's Newton steps share their Jacobian): (row swaps, multipliers, upper triangle) on
+    Python floats. :func:`lu_solve` then makes the same operations on ``b`` as :func:`solve`,
+    so the same bits."""
+    A = [[float(v) for v in row] for row in A]
+    n = len(A)
+    swaps, mults = [], []
+    for k in range(n):
+        col = [abs(A[i][k]) for i in range(k, n)]
+        if not all(math.isfinite(c) for c in col):
+            raise SingularMatrixError(f"zero or non-finite pivot in column {k}")
+        p = k + col.index(max(col))
+        if not A[p][k] != 0.0:
+            raise SingularMatrixError(f"zero or non-finite pivot in column {k}")
+        if p != k:
+            A[k], A[p] = A[p], A[k]
+        row, fs = A[k], []
+        for i in range(k + 1, n):
+            f = A[i][k] / row[k]
+            Ai = A[i]
+            for j in range(k, n):
+                Ai[j] = Ai[j] - f * row[j]
+            fs.append(f)
+        swaps.append(p)
+        mults.append(fs)
+    return tuple(swaps), tuple(tuple(f) for f in mults), tuple(tuple(row) for row in A)
+
+
+def lu_solve(lu: tuple, b) -> np.ndarray:
+    """x with A x = b, ``lu`` = :func:`lu_factor` (A): the same bits as ``solve(A, b)``."""
+    swaps, mults, U = lu
+    x = [float(v) for v in b]
+    n = len(x)
+    for k in range(n):
+        p = swaps[k]
+        if p != k:
+            x[k], x[p] = x[p], x[k]
+        xk = x[k]
+        for i, f in zip(range(k + 1, n), mults[k]):
+            x[i] = x[i] - f * xk
+    for k in range(n - 1, -1, -1):
+        x[k] = (x[k] - math.fsum([U[k][j] * x[j] for j in range(k + 1, n)])) / U[k][k]
+    return np.array(x)
+
+
 def inverse(A) -> np.ndarray:
     return solve(A, np.eye(len(A)))
 

@@ -2,10 +2,11 @@
 altitudes in feet, angles in degrees, as the data files give them)."""
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
-from ..core.units import FT, KT
-from ..physics.atmosphere import cas_to_tas, isa_pressure, isa_temperature
+from ..core.units import KT
+from ..physics.atmosphere import cas_to_tas, isa_at_ft
 
 MODES = {
     "level": "flight path given (vs_fpm), speed given, throttle trims",
@@ -46,13 +47,19 @@ class Condition:
     def temperature_k(self) -> float:
         if self.oat_c is not None:
             return self.oat_c + 273.15
-        return float(isa_temperature(self.pressure_alt_ft * FT)) + self.isa_dev_c
+        return isa_at_ft(self.pressure_alt_ft)[0] + self.isa_dev_c
 
     def true_airspeed_kt(self) -> float:
         """True airspeed [kt]: given, or from KCAS at the condition's pressure altitude and temperature."""
         if self.ktas is not None:
             return self.ktas
-        return float(cas_to_tas(self.kcas * KT, isa_pressure(self.pressure_alt_ft * FT), self.temperature_k()) / KT)
+        return _ktas(self.kcas, self.pressure_alt_ft, self.temperature_k())
+
+
+@functools.lru_cache(maxsize=4096)
+def _ktas(kcas: float, pressure_alt_ft: float, temperature_k: float) -> float:
+    """True airspeed [kt] of a calibrated airspeed, kept (a fit trims the same points thousands of times)."""
+    return float(cas_to_tas(kcas * KT, isa_at_ft(pressure_alt_ft)[1], temperature_k) / KT)
 
 
 @dataclass

@@ -260,9 +260,10 @@ def aircraft_bytes(aircraft: Tree, factors: FactorSet, *, effect_values: Mapping
     return tostring(aircraft, indent_file)
 
 
-def propeller_bytes(paths: AircraftPaths, propeller: Propeller, factors: FactorSet) -> bytes:
+def propeller_bytes(file_name: str, propeller: Propeller, factors: FactorSet) -> bytes:
+    """The propeller file ``file_name`` (``AircraftPaths.propeller_file``) baked at ``factors``."""
     return tostring(propeller_tree(propeller.geometry, propeller.bem, factors, aircraft=propeller.aircraft,
-                                   file_name=paths.propeller_file))
+                                   file_name=file_name))
 
 
 def write_aircraft(paths: AircraftPaths, factors: FactorSet, *, aircraft: Tree | None = None,
@@ -283,7 +284,7 @@ def write_aircraft(paths: AircraftPaths, factors: FactorSet, *, aircraft: Tree |
                                                        stamp_body=stamp_body))
         out.append(paths.aircraft_xml)
     if propeller is not None:
-        write_bytes(paths.propeller_xml, propeller_bytes(paths, propeller, factors))
+        write_bytes(paths.propeller_xml, propeller_bytes(paths.propeller_file, propeller, factors))
         out.append(paths.propeller_xml)
     return out
 
@@ -377,7 +378,7 @@ def write_calibrated(root: Path | str, name: str, factors: FactorSet, stage: str
     propeller = Propeller(load_aircraft_geometry(paths.root, name), read_bem_csv(paths.propeller_bem), name)
     files = {paths.aircraft_xml: aircraft_bytes(tree, factors, indent_file=False,
                                                 calibration=calibration_digest(factors)),
-             paths.propeller_xml: propeller_bytes(paths, propeller, factors),
+             paths.propeller_xml: propeller_bytes(paths.propeller_file, propeller, factors),
              paths.calibration: calibration_record_bytes(paths, factors, stage, record)}
     done = commit_product(paths, files, run)
     return ProductWrite(list(files), changes, [h.name for h in hand], done.backup)

@@ -167,6 +167,7 @@ class Simulator:
             box = copy(self._tree)
             add_trim_aid(box, self.geometry.propeller.location_m)
             write_aircraft(self._box_paths, self.factors, aircraft=box, effect_values=self.effect_values)
+            self._propeller_xml = self._box_paths.propeller_xml     # named in the file just written: read once
         if propeller:
             key = tuple(self.factors[k] for k in PROPELLER_FACTORS)
             baked = self._propellers.get(key)
@@ -174,8 +175,8 @@ class Simulator:
                 if len(self._propellers) >= PROPELLER_CACHE:
                     self._propellers.pop(next(iter(self._propellers)))
                 baked = self._propellers[key] = propeller_bytes(
-                    self._box_paths, Propeller(self.geometry, self.bem, self.name), self.factors)
-            write_bytes(self._box_paths.propeller_xml, baked)
+                    self._propeller_xml.stem, Propeller(self.geometry, self.bem, self.name), self.factors)
+            write_bytes(self._propeller_xml, baked)
 
     @property
     def sandbox(self) -> Path:

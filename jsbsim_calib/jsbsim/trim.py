@@ -28,7 +28,7 @@ from ..core import numerics
 from ..core.errors import TrimError
 from ..core.units import FT, G0, HP, KT, LAPSE, T0
 from ..flight.condition import Condition, TrimResult
-from ..physics.atmosphere import isa_pressure, isa_temperature
+from ..physics.atmosphere import isa_at_ft
 from ..physics.engine import poh_mixture
 from ..physics.geometry import AircraftGeometry
 
@@ -73,7 +73,7 @@ def set_atmosphere(fdm, pressure_alt_ft: float, temperature_k: float) -> float:
     correction against JSBSim's own pressure altitude).
     """
     hp_m = pressure_alt_ft * FT
-    t_std = float(isa_temperature(hp_m))
+    t_std = isa_at_ft(pressure_alt_ft)[0]
     dT = temperature_k - t_std                       # bias of the whole profile [K]
     # geopotential height where the biased profile has the pressure of hp
     h_gp = hp_m * (T0 + dT) / T0 if hp_m < 11000 else hp_m + dT / LAPSE
@@ -106,6 +106,10 @@ class _Equilibrium:
     V0: float                 # [ft/s] true airspeed of the condition
     phi: float                # [rad] bank
     rpm_set: float | None     # governor setting (a constant-speed propeller), else None
+
+    def __post_init__(self):
+        # the property nodes a residual sets and reads (one JSBSim for the whole trim)
+        self.state_nodes, self.accel_nodes = self.sim.nodes(STATE), self.sim.nodes(ACCELS)
 
     @property
     def full(self) -> bool:
@@ -143,7 +147,7 @@ class _Equilibrium:
                   # residual continuous (sandbox only): TRIM_AID_LBF per unit of throttle
                   TRIM_AID_LBF * (min(thr, 0.0) + max(thr - 1.0, 0.0)),
                   x[3], x[4], x[5])
-        for node, v in zip(self.sim.nodes(STATE), values):
+        for node, v in zip(self.state_nodes, values):
             node.set_double_value(v)
         fdm = self.sim.fdm
         if self.governed:
@@ -155,13 +159,13 @@ class _Equilibrium:
     def residual(self, x) -> np.ndarray:
         self.sim.evals += 1
         self.set_state(x)
-        r = np.array([node.get_double_value() for node in self.sim.nodes(ACCELS)]) / ACCEL_SCALE
+        r = np.array([node.get_double_value() for node in self.accel_nodes]) / ACCEL_SCALE
         if self.governed:
             # past a pitch stop the blade stays on the stop and the unknown measures the
             # RPM the governor cannot hold (under-speed on the fine stop, over-speed on the coarse)
             beyond = x[6] - self.blade(x)
             r = np.append(r, (self.sim.fdm["propulsion/engine/engine-rpm"] - self.rpm_set) / 100.0 - beyond / 10.0)
-        if not np.all(np.isfinite(r)):
+        if not all(map(math.isfinite, r.tolist())):
             return np.full(len(x), 1e3)
         # keep the solver inside the physical ranges: continue the residual linearly past them
         excess = max(0.0, abs(x[3]) - 1) + max(0.0, abs(x[4]) - 1) + max(0.0, abs(x[5]) - 1)
@@ -189,7 +193,7 @@ def _prepare(sim, cond: Condition) -> tuple[_Equilibrium, float, float]:
     sim.set_loading(cond.weight_lb, cond.cg_in, cond.fuel_fraction)
     T = cond.temperature_k()
     set_atmosphere(fdm, cond.pressure_alt_ft, T)
-    p_amb = float(isa_pressure(cond.pressure_alt_ft * FT))
+    p_amb = isa_at_ft(cond.pressure_alt_ft)[1]
     if isinstance(cond.mixture, str):
         mix = poh_mixture(p_amb, climb=cond.mixture == "climb",
                           full_rich_below_m=sim.geometry.engine.full_rich_below_m)
@@ -219,36 +223,47 @@ def _jacobian(residual, x, fx, h=1e-5):
 
 
 def _warm_start(problem: _Equilibrium, cached) -> tuple[tuple, int]:
-    """Newton steps with the Jacobian kept from the last trim of this point, each step shortened
-    (1, 1/2, 1/4 of it) until it lowers the largest residual: the tables interpolate linearly
-    and the throttle has stops, so a full step from a kept Jacobian can cross a kink that a
-    shorter one does not (without the shorter steps, 45 % of the level trims fell back to
-    ``hybr``). Returns (x, norm, J) and the evaluations."""
-    x, J = np.array(cached[0], float), cached[1]
+    """Newton steps with the Jacobian kept from the last trim of this point (factored once:
+    ``cached`` is (x, :func:`_factored` J)), each step shortened (1, 1/2, 1/4 of it) until it
+    lowers the largest residual: the tables interpolate linearly and the throttle has stops, so
+    a full step from a kept Jacobian can cross a kink that a shorter one does not (without the
+    shorter steps, 45 % of the level trims fell back to ``hybr``). Returns (x, norm, the
+    factored J) and the evaluations."""
+    x, lu = np.array(cached[0], float), cached[1]
     fx = problem.residual(x)
     nfev = 1
     for _ in range(NEWTON_STEPS):
-        norm = float(np.max(np.abs(fx)))
-        if norm < NEWTON_TOL:
+        norm = _largest(fx)
+        if norm < NEWTON_TOL or lu is None:        # converged, or a singular Jacobian: no step
             break
-        try:
-            d = numerics.solve(J, fx)             # not np.linalg: the same bits on every CPU
-        except numerics.SingularMatrixError:
-            break
+        d = numerics.lu_solve(lu, fx)             # not np.linalg: the same bits on every CPU
         for share in NEWTON_SHARES:
             x_new = x - share * d
             f_new = problem.residual(x_new)
             nfev += 1
-            if float(np.max(np.abs(f_new))) < norm:
+            if _largest(f_new) < norm:
                 break
         else:
             break
         x, fx = x_new, f_new
-    return (x, float(np.max(np.abs(fx))), J), nfev
+    return (x, _largest(fx), lu), nfev
+
+
+def _factored(J: np.ndarray):
+    """J as the Newton steps use it (:func:`numerics.lu_factor`), or None where it is singular."""
+    try:
+        return numerics.lu_factor(J)
+    except numerics.SingularMatrixError:
+        return None
+
+
+def _largest(r: np.ndarray) -> float:
+    """The largest absolute residual (a residual is finite: :meth:`_Equilibrium.residual`)."""
+    return max(map(abs, r.tolist()))
 
 
 def _solve(problem: _Equilibrium, starts: list) -> tuple[tuple, int]:
-    """``hybr`` from each start until one reaches an equilibrium: the best (x, norm, J), evaluations."""
+    """``hybr`` from each start until one reaches an equilibrium: the best (x, norm, factored J), evaluations."""
     best, nfev = None, 0
     for x0 in starts:
         # finite-difference steps of 1e-4 (relative, absolute near 0): well above the
@@ -262,7 +277,7 @@ def _solve(problem: _Equilibrium, starts: list) -> tuple[tuple, int]:
         J = _jacobian(problem.residual, x, fx)
         nfev += 6
         if best is None or norm < best[1]:
-            best = (x, norm, J)
+            best = (x, norm, _factored(J))
         if norm < EQUILIBRIUM_TOL:
             break
     return best, nfev
@@ -275,15 +290,16 @@ def _result(problem: _Equilibrium, x, nfev: int, mix: float, T: float) -> TrimRe
     r = problem.residual(x)          # leaves the trimmed state in JSBSim
     res = float(np.max(np.abs(r)))
     out = TrimResult(cond, True, residual=res, evals=nfev + 1)
-    for k, p in OUTPUTS.items():
-        setattr(out, k, float(fdm[sim.indicated.get(k, p)]))
+    shown = tuple(sim.indicated.get(k, p) for k, p in OUTPUTS.items())      # as an instrument shows it, where defined
+    for k, node in zip(OUTPUTS, sim.nodes(shown)):
+        setattr(out, k, node.get_double_value())
     out.throttle = cond.throttle if (problem.full or problem.speed_free) else float(x[2])
     out.extra["throttle_required"] = out.throttle
     out.extra["trim_aid_lbf"] = float(fdm[TRIM_AID])
     out.mixture = mix
     out.pct_power = 100.0 * out.power_hp / (sim.geometry.engine.max_power_w / HP)
     out.roc_fpm = float(fdm["velocities/h-dot-fps"]) * 60.0
-    t_std = float(isa_temperature(cond.pressure_alt_ft * FT))
+    t_std = isa_at_ft(cond.pressure_alt_ft)[0]
     out.roc_pressure_fpm = out.roc_fpm * t_std / T
     out.torque_lbft = out.power_hp * 550.0 / max(out.rpm * 2 * math.pi / 60.0, 1e-6)
     problems = []
@@ -317,24 +333,24 @@ def _trim_once(sim, cond: Condition, key=None) -> TrimResult:
     except TrimError as exc:
         return TrimResult(cond, False, str(exc))
     T = cond.temperature_k()
-    cold = problem.cold_start(p_amb, float(isa_temperature(cond.pressure_alt_ft * FT)), T)
     sim.fdm.suspend_integration()
     best, nfev = None, 0
     cached = sim.trim_cache.get(key) if key is not None else None
     if cached is not None:
         best, nfev = _warm_start(problem, cached)
     if best is None or best[1] > NEWTON_TOL:
+        cold = problem.cold_start(p_amb, isa_at_ft(cond.pressure_alt_ft)[0], T)
         found, n = _solve(problem, ([best[0]] if best is not None else []) + [cold])
         nfev += n
         if best is None or found[1] < best[1]:
             best = found
-    x, _, J = best
+    x, _, lu = best
     out = _result(problem, x, nfev, mix, T)
     sim.fdm[TRIM_AID] = 0.0
     if not out.trimmed:
         _recover(sim.fdm)
     elif key is not None:
-        sim.trim_cache[key] = (x.copy(), J)
+        sim.trim_cache[key] = (x.copy(), lu)       # the next warm start: the point and its Jacobian, factored
     return out
 
 

@@ -19,6 +19,7 @@ Celsius) are built on it:
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any, Sequence
 
@@ -36,6 +37,15 @@ def isa_temperature(h_m):
     """Standard temperature [K] at geopotential altitude h [m]."""
     h = np.asarray(h_m, float)
     return np.where(h < _H_TROP, T0 - LAPSE * h, _T_TROP)
+
+
+@functools.lru_cache(maxsize=4096)
+def isa_at_ft(pressure_alt_ft: float) -> tuple[float, float]:
+    """ISA temperature [K] and pressure [Pa] at a pressure altitude [ft], as floats: the values of
+    :func:`isa_temperature` and :func:`isa_pressure`, kept (a fit trims the same few altitudes
+    tens of thousands of times)."""
+    h = pressure_alt_ft * FT
+    return float(isa_temperature(h)), float(isa_pressure(h))
 
 
 def isa_pressure(h_m):
