@@ -1,6 +1,6 @@
 """Scaling of the calibration with workers: the process pool and a Dask LocalCluster.
 
-    python benchmarks/scaling.py [--workers 1,2,4] [--executors process,dask] [--chain] [--profile]
+    python benchmarks/scaling.py [--workers 1,2,4] [--executors process,dask] [--chain [--no-steady]] [--profile]
 
 For each executor and worker count it runs the C172 steady stage (stage 1 from neutral
 factors, as the main job, nothing written) and, with ``--chain``, the chain of stages 1, 2a
@@ -162,12 +162,14 @@ def main() -> None:
     ap.add_argument("--chain", action="store_true", help="also the chain of stages 1, 2a and 2b")
     ap.add_argument("--profile", action="store_true", help="a profile of the one-worker steady stage")
     ap.add_argument("--no-serial", action="store_true", help="leave out the one-worker runs (no speed-ups)")
+    ap.add_argument("--no-steady", action="store_true", help="leave out the steady stage's table (with --chain)")
     a = ap.parse_args()
     workers = sorted({int(w) for w in a.workers.split(",")})
     kinds = [k for k in a.executors.split(",") if k]
     if a.profile:
         profile()
-    table("C172 steady stage (stage 1 from neutral factors)", steady, kinds, workers, not a.no_serial)
+    if not a.no_steady:
+        table("C172 steady stage (stage 1 from neutral factors)", steady, kinds, workers, not a.no_serial)
     if a.chain:
         table("C172 chain (stages 1, 2a, 2b)", chain, kinds, workers, not a.no_serial)
 
