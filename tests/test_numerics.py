@@ -98,16 +98,17 @@ def test_a_batch_of_trial_points_takes_the_steps_one_at_a_time_takes(batch, max_
     assert max_nfev is None or many.nfev <= max_nfev
 
 
-def test_a_factored_matrix_solves_to_the_bits_of_solve():
-    """A trim's Newton steps solve with its Jacobian factored once (lu_factor, lu_solve): the
-    same bits as solve, on random systems over ten decades, and the same refusal of a singular one."""
+def test_a_factored_matrix_solves_to_the_bits_of_the_matrix_elimination():
+    """A trim's Newton steps solve with its Jacobian factored once (lu_factor, lu_solve, on Python
+    floats): the bits of solve's elimination in numpy on a matrix of right-hand sides, on random
+    systems over ten decades, and the same refusal of a singular matrix."""
     from jsbsim_calib.core.numerics import SingularMatrixError, lu_factor, lu_solve, solve
     rng = np.random.default_rng(7)
     for n in (1, 2, 6, 7):
         for _ in range(300):
             A = rng.normal(size=(n, n)) * 10.0 ** rng.uniform(-5, 5, size=(n, n))
             b = rng.normal(size=n)
-            assert np.array_equal(lu_solve(lu_factor(A), b), solve(A, b))
+            assert np.array_equal(lu_solve(lu_factor(A), b), solve(A, b[:, None])[:, 0])
     singular = np.array([[1.0, 2.0], [2.0, 4.0]])
     with pytest.raises(SingularMatrixError):
         lu_factor(singular)
