@@ -252,9 +252,9 @@ def test_sandboxes_do_not_outlive_their_run(generated_root, tmp_path, how):
 
 
 CALIBRATION_KILLER = """
-import os, signal, sys
+import os, pickle, signal, sys
+import jsbsim_calib.cli as cli
 import jsbsim_calib.core.commit as c
-from jsbsim_calib.cli import main
 from pathlib import Path
 WRITES = (".commit-journal.json", "c172.xml", "c172_propeller.xml", "calibration.json")
 calls, real = [], os.replace
@@ -265,9 +265,29 @@ def replace(a, b):
             os.killpg(0, signal.SIGKILL)
     real(a, b)
 c.os.replace = replace
-main(["--root", sys.argv[1], "--quiet", "--executor", "serial", "calibrate", "c172", "--stage", "dynamic",
-      "--start", "current", "--report-dir", sys.argv[2]])
+# stage 2b from the committed product is the same bits in each of the three kill runs: the first
+# computes it (the real run_dynamic) and keeps it for the others, which write it
+computed, run_dynamic = Path(sys.argv[3]), cli.run_dynamic
+def kept(*args, **kw):
+    if computed.is_file():
+        return pickle.loads(computed.read_bytes())
+    res = run_dynamic(*args, **kw)
+    tmp = computed.with_name(f"{{computed.name}}.{{os.getpid()}}.tmp")
+    tmp.write_bytes(pickle.dumps(res))
+    os.rename(tmp, computed)
+    return res
+cli.run_dynamic = kept
+cli.main(["--root", sys.argv[1], "--quiet", "--executor", "serial", "calibrate", "c172", "--stage", "dynamic",
+          "--start", "current", "--report-dir", sys.argv[2]])
 """
+
+
+@pytest.fixture(scope="session")
+def stage2b_kept(tmp_path_factory) -> Path:
+    """Where the kill runs keep stage 2b's result: one file per test session (shared by xdist's
+    workers, whose base folders sit in the session's)."""
+    base = tmp_path_factory.getbasetemp()
+    return (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "stage2b_current.pkl"
 
 
 def _calibrate_dynamic(root: Path, reports: Path) -> None:
@@ -279,16 +299,17 @@ def _calibrate_dynamic(root: Path, reports: Path) -> None:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kill_at", [1, 2, 3])
-def test_calibration_killed_at_each_write_leaves_a_consistent_aircraft(tmp_path, kill_at):
+def test_calibration_killed_at_each_write_leaves_a_consistent_aircraft(tmp_path, kill_at, stage2b_kept):
     """`calibrate c172 --stage dynamic` (the committed C172) killed (SIGKILL) at each rename of
     its write: the journal's (1), then the first product files that change (the aircraft,
     calibration.json and, where stage 2b's K_Ip moved, the propeller it is baked into). The next
-    reader finds the old set (1) or the new one (2, 3), never a mix; the aircraft loads."""
+    reader finds the old set (1) or the new one (2, 3), never a mix; the aircraft loads. Stage 2b
+    itself runs once in the session (the same result each time); each run writes it."""
     root = copy_root(REPO, tmp_path / "root")
     paths = AircraftPaths(root, "c172")
     old = {p: p.read_bytes() for p in paths.product_files if p.is_file()}
     r = subprocess.run([sys.executable, "-c", CALIBRATION_KILLER.format(kill_at=kill_at), str(root),
-                        str(tmp_path / "reports")], capture_output=True, start_new_session=True)
+                        str(tmp_path / "reports"), str(stage2b_kept)], capture_output=True, start_new_session=True)
     assert r.returncode == -signal.SIGKILL, r.stderr.decode()[-2000:]
     with pytest.warns(UserWarning, match="interrupted write") if kill_at > 1 else nullcontext():
         assert recover_product(paths) == ("rolled back" if kill_at == 1 else "finished")
