@@ -100,9 +100,9 @@ def lu_factor(A) -> tuple:
     swaps, mults = [], []
     for k in range(n):
         col = [abs(A[i][k]) for i in range(k, n)]
-        if not all(math.isfinite(c) for c in col):
+        if not all(math.isfinite(c) for c in col):            # numpy's argmax picks a NaN or an inf
             raise SingularMatrixError(f"zero or non-finite pivot in column {k}")
-        p = k + col.index(max(col))
+        p = k + col.index(max(col))                            # the first of the largest, as argmax
         if not A[p][k] != 0.0:
             raise SingularMatrixError(f"zero or non-finite pivot in column {k}")
         if p != k:
