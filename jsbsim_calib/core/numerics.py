@@ -71,7 +71,7 @@ def solve(A, b) -> np.ndarray:
         raise ValueError(f"solve needs a square matrix and a right-hand side of its size, got {A.shape}, {x.shape}")
     if x.ndim == 1:
         return lu_solve(lu_factor(A), x)
-    for k in range(n):
+    for k in range(n):                  # a matrix of right-hand sides (inverse): the same elimination in numpy
         p = k + int(np.argmax(np.abs(A[k:, k])))
         if not A[p, k] != 0.0 or not math.isfinite(A[p, k]):
             raise SingularMatrixError(f"zero or non-finite pivot in column {k}")
@@ -80,12 +80,9 @@ def solve(A, b) -> np.ndarray:
             x[[k, p]] = x[[p, k]]
         f = A[k + 1:, k] / A[k, k]
         A[k + 1:, k:] -= np.multiply.outer(f, A[k, k:])
-        x[k + 1:] -= np.multiply.outer(f, x[k]) if x.ndim > 1 else f * x[k]
+        x[k + 1:] -= np.multiply.outer(f, x[k])
     for k in range(n - 1, -1, -1):
-        if x.ndim > 1:
-            x[k] = (x[k] - np.array([dot(A[k, k + 1:], x[k + 1:, j]) for j in range(x.shape[1])])) / A[k, k]
-        else:
-            x[k] = (x[k] - dot(A[k, k + 1:], x[k + 1:])) / A[k, k]
+        x[k] = (x[k] - np.array([dot(A[k, k + 1:], x[k + 1:, j]) for j in range(x.shape[1])])) / A[k, k]
     return x
 
 

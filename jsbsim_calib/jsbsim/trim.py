@@ -273,7 +273,7 @@ def _solve(problem: _Equilibrium, starts: list) -> tuple[tuple, int]:
         x = sol.x if np.all(np.isfinite(sol.x)) else x0
         fx = problem.residual(x)
         nfev += 1
-        norm = float(np.max(np.abs(fx)))
+        norm = _largest(fx)
         J = _jacobian(problem.residual, x, fx)
         nfev += 6
         if best is None or norm < best[1]:
@@ -288,7 +288,7 @@ def _result(problem: _Equilibrium, x, nfev: int, mix: float, T: float) -> TrimRe
     sim, cond = problem.sim, problem.cond
     fdm = sim.fdm
     r = problem.residual(x)          # leaves the trimmed state in JSBSim
-    res = float(np.max(np.abs(r)))
+    res = _largest(r)
     out = TrimResult(cond, True, residual=res, evals=nfev + 1)
     shown = tuple(sim.indicated.get(k, p) for k, p in OUTPUTS.items())      # as an instrument shows it, where defined
     for k, node in zip(OUTPUTS, sim.nodes(shown)):
