@@ -279,6 +279,36 @@ def test_noise_is_seeded_and_stays_valid(c172, tmp_path):
     assert isinstance(load_time_history(pa), TimeHistory)
 
 
+def test_a_noisy_input_is_replayed_as_the_surface_moved_not_as_its_sensor_noise(c172):
+    """The pulses recorded with 0.1 deg of sensor noise on every surface: the replay's inputs
+    follow the noise-free record's within 0.04 deg RMS (a constant left aside: the mean of
+    the steady start, which the loop's offsets fit), on a dozen breakpoints. Flying every
+    sample, as the replay did before INPUT_NOISE_SIGMAS, they were 0.08-0.09 deg off."""
+    from jsbsim_calib.data.timehistory import SensorError
+    traj = fly(c172, _flight(c172))
+    noise = {c: SensorError(0.1, 0.0) for c in ("elevator_deg", "aileron_deg", "rudder_deg")}
+    noisy = trajectory_to_time_history(traj, META_FLIGHT, RATE_HZ, noise=noise, rng=np.random.default_rng(0))
+    clean = maneuver_from_time_history(trajectory_to_time_history(traj, META_FLIGHT, RATE_HZ), c172.geometry)
+    t = np.arange(0.0, 14.0, 0.05)
+    for got, want in zip(maneuver_from_time_history(noisy, c172.geometry).inputs[:3], clean.inputs):
+        err = np.interp(t, got.time_s, got.value) - np.interp(t, want.time_s, want.value)
+        assert np.std(err) < 0.04 and len(got.time_s) <= 12, got.channel
+
+
+def test_a_record_starting_at_full_throttle_is_trimmed_there(c172):
+    """The Level 5 normal climb at seed 2 records 693.7 ft/min, a little more than the model
+    climbs at full throttle there: a level trim at that climb rate has no solution ("needs
+    more than full throttle"), so the replay trims at full throttle with the flight path free."""
+    from jsbsim_calib.synthetic.maneuvers import fly_plan, load_plan
+    plan = load_plan("level5")
+    th = fly_plan(c172, replace(plan, maneuvers=plan.maneuvers[:1]), seed=2)[0]
+    start = th.initial_condition()
+    assert (start.mode, start.throttle) == ("full_throttle", 1.0)
+    level = c172.trim(replace(start, mode="level"))
+    assert not level.trimmed and "more than full throttle" in level.reason
+    assert fly(c172, maneuver_from_time_history(th, c172.geometry)).time_s[-1] == pytest.approx(th.time_s[-1])
+
+
 def test_pilot_windows_round_trip_into_the_replays_holds_and_bad_windows_are_named():
     """A sidecar keeps the pilot's targets and windows; the replay flies them; a bad window is
     refused by its key."""

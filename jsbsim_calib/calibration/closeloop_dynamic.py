@@ -65,7 +65,7 @@ import numpy as np
 from scipy import stats
 
 from ..data.flighttest import load_control_travel
-from ..data.timehistory import CHANNELS
+from ..data.timehistory import CHANNELS, fitted_polyline, noise_sigma
 from ..evaluation.evaluate_dynamic import AXIS_CHANNELS, CHANNEL_SCALES, FAIL_RESIDUAL, RecordedTest, load_recorded_tests
 from ..core.errors import CalibError, InputError, Problem
 from ..core.executor import SERIAL, Executor
@@ -658,11 +658,11 @@ def with_offsets(test: RecordedTest, offsets: Mapping[str, float]) -> RecordedTe
 
 def offset_bounds(tests: Sequence[RecordedTest]) -> list[dict[str, float]]:
     """Per test, how far each replayed surface input's offset may go: :data:`OFFSET_SIGMAS` of
-    the input's noise (:func:`input_noise` of its recorded samples), at most
+    the input's noise (:func:`~jsbsim_calib.data.timehistory.noise_sigma` of its recorded samples), at most
     :data:`OFFSET_BOUND_DEG`; an input without noise has no offset."""
     out = []
     for t in tests:
-        b = {i.channel: min(OFFSET_BOUND_DEG, OFFSET_SIGMAS * input_noise(t.record.get(i.channel, ())))
+        b = {i.channel: min(OFFSET_BOUND_DEG, OFFSET_SIGMAS * noise_sigma(np.asarray(t.record.get(i.channel, ()), float)))
              for i in t.maneuver.inputs if i.channel in OFFSET_CHANNELS}
         out.append({c: v for c, v in b.items() if v > 0})
     return out
@@ -737,27 +737,29 @@ REPLAY_DRAWS = 2             # replays of every test with its inputs' noise redr
 REPLAY_SEED = 20261
 
 
-def input_noise(values: Sequence[float]) -> float:
-    """An input's noise (standard deviation) from its breakpoints' second differences (median
-    absolute value: the corners of a pulse stay out); 0 for fewer than five."""
-    d2 = np.diff(np.asarray(values, float), 2)
-    return 1.4826 * float(np.median(np.abs(d2))) / math.sqrt(6.0) if d2.size >= 3 else 0.0
-
-
 def _noisy(test: RecordedTest, rng: np.random.Generator) -> RecordedTest:
-    """The test with each input's noise drawn again (the same level, a new draw)."""
-    inputs = tuple(replace(i, value=tuple(np.asarray(i.value) + rng.normal(0.0, input_noise(i.value), len(i.value))))
-                   for i in test.maneuver.inputs)
-    return replace(test, maneuver=replace(test.maneuver, inputs=inputs))
+    """The test with each input's sensor noise drawn again: the recorded samples' noise
+    (:func:`~jsbsim_calib.data.timehistory.noise_sigma`, the same level) through the replay's
+    least-squares polyline on the input's breakpoints (a constant part is left to the offsets).
+    An input whose breakpoints are not the record's sample times, or whose samples the record
+    does not hold, is replayed as it is."""
+    t, inputs = np.asarray(test.time_s, float), []
+    for i in test.maneuver.inputs:
+        x, knots = test.record.get(i.channel), np.asarray(i.time_s, float)
+        sigma = noise_sigma(np.asarray(x, float)) if x is not None and len(x) == t.size else 0.0
+        if sigma > 0 and knots.size > 1 and knots[0] == t[0] and knots[-1] == t[-1] and np.isin(knots, t).all():
+            i = replace(i, value=tuple(np.asarray(i.value) + fitted_polyline(t, rng.normal(0.0, sigma, t.size), knots)))
+        inputs.append(i)
+    return replace(test, maneuver=replace(test.maneuver, inputs=tuple(inputs)))
 
 
 def replay_weights(sim: Simulator, tests: Sequence[RecordedTest], executor: Executor = SERIAL) -> list[RecordedTest]:
     """Each test with a weight per channel: 1 / sqrt(1 + (spread / scale)^2), the spread the
     RMS change of the model's response when the inputs' own noise is drawn again
-    (:data:`REPLAY_DRAWS` replays). A replay feeds the recorded inputs, noise included, to the
-    model: where a mode diverges (a spiral left to itself) that noise alone moves the response
-    by more than any model error, and such a test must not read as structure; a test whose
-    inputs carry no noise keeps weight 1."""
+    (:data:`REPLAY_DRAWS` replays). A replay feeds the model the recorded inputs as fitted to
+    their samples, with what the fit leaves of their noise: where a mode diverges (a spiral
+    left to itself) that alone can move the response by more than any model error, and such a
+    test must not read as structure; a test whose inputs carry no noise keeps weight 1."""
     rng = np.random.default_rng(REPLAY_SEED)
     noisy = [_noisy(t, rng) for _ in range(REPLAY_DRAWS) for t in tests]
     flown = fly_spread(sim, list(tests) + noisy, executor)

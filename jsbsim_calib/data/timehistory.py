@@ -37,6 +37,7 @@ from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
+from scipy.linalg import solveh_banded
 
 from ..core.errors import DataError, InputError, Problem
 from ..flight.condition import Condition
@@ -94,6 +95,8 @@ PILOT_AXES = ("pitch", "roll", "yaw", "speed")
 AXIS_CHANNELS = {"pitch": ("elevator_deg", "column_in"), "roll": ("aileron_deg", "wheel_deg"),
                  "yaw": ("rudder_deg", "pedal_in"), "speed": ("throttle_norm",)}
 STEADY_LEAD_S = 1.0      # the steady start a record begins from: at most its first second
+THROTTLE_STOP = 0.02     # a record starting this close to a throttle stop is trimmed at it (flight path free)
+INPUT_NOISE_SIGMAS = 4.0  # a replayed input follows the record within this many standard deviations of its sample noise
 DEPARTURE = {"throttle_norm": 0.05, "flaps_deg": 1.0, "column_in": 0.05, "pedal_in": 0.05, "wheel_deg": 2.0}
 #   ... ended where an input departs from its first sample by this much (else 0.5 deg of a surface)
 MAX_LISTED = 10          # problems of one kind listed per column before a count of the rest
@@ -338,7 +341,11 @@ class TimeHistory:
     def initial_condition(self) -> Condition:
         """The trim condition of the steady start (the mean of :meth:`steady_lead`'s samples):
         pressure altitude, KTAS (else KCAS), vertical speed, bank (a steady coordinated turn if
-        not 0), and the configuration."""
+        not 0), and the configuration. A record whose first sample is within
+        :data:`THROTTLE_STOP` of a throttle stop (an idle glide, a full-throttle climb) is
+        trimmed at that throttle with the flight path free: a level trim there is
+        over-determined, and a noisy vertical speed a few feet per minute beyond the model's
+        best has no trim at all."""
         missing = [c for c in ("pressure_alt_ft",) if c not in self.frame]
         if "ktas" not in self.frame and "kcas" not in self.frame:
             missing.append("ktas or kcas")
@@ -349,8 +356,11 @@ class TimeHistory:
         speed = {"ktas": float(first["ktas"])} if "ktas" in self.frame else {"kcas": float(first["kcas"])}
         bank = float(first["roll_deg"]) if "roll_deg" in self.frame else 0.0
         c = self.meta.configuration
+        thr = float(self.frame["throttle_norm"].iloc[0]) if "throttle_norm" in self.frame else 0.5
+        at_stop = math.isfinite(thr) and min(thr, abs(1.0 - thr)) <= THROTTLE_STOP
+        stop = {"mode": "full_throttle", "throttle": float(round(thr))} if at_stop else {"mode": "level"}
         return Condition(pressure_alt_ft=float(first["pressure_alt_ft"]), weight_lb=c.weight_lb, cg_in=c.cg_in,
-                         flaps_deg=c.flaps_deg, mode="level",
+                         flaps_deg=c.flaps_deg, **stop,
                          vs_fpm=float(first["vs_fpm"]) if "vs_fpm" in self.frame else 0.0,
                          bank_deg=bank, turn="coordinated" if bank != 0.0 else "straight", mixture=c.mixture,
                          isa_dev_c=c.isa_dev_c, **speed)
@@ -601,6 +611,26 @@ def _breakpoints(t: np.ndarray, v: np.ndarray, tol: float) -> tuple[tuple[float,
     return tuple(float(t[k]) for k in keep), tuple(float(v[k]) for k in keep)
 
 
+def fitted_polyline(t: np.ndarray, v: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    """The values at ``knots`` (sample times, increasing, the first and last of ``t`` among
+    them) of the polyline closest to the samples ``v`` in least squares: a flat stretch of a
+    noisy input is held at its mean, not at one sample."""
+    j = np.clip(np.searchsorted(knots, t, side="right") - 1, 0, knots.size - 2)
+    w = (t - knots[j]) / (knots[j + 1] - knots[j])
+    a, n = 1.0 - w, knots.size
+    diag = np.bincount(j, a * a, n) + np.bincount(j + 1, w * w, n)
+    upper = np.concatenate(([0.0], np.bincount(j, a * w, n)[:-1]))
+    rhs = np.bincount(j, a * v, n) + np.bincount(j + 1, w * v, n)
+    return solveh_banded(np.vstack((upper, diag)), rhs)
+
+
+def noise_sigma(x: np.ndarray) -> float:
+    """The sample noise of a smooth signal: the robust spread of its second differences."""
+    if x.size < 3:
+        return 0.0
+    return float(np.median(np.abs(np.diff(x, 2)))) / 0.6745 / math.sqrt(6.0)
+
+
 def _resolution(name: str, travel: Mapping[str, ControlAxis] | None) -> float:
     """The written resolution of an input channel, in the units of its maneuver channel
     (a cockpit control's through the steepest slope of its surface map)."""
@@ -677,7 +707,10 @@ def maneuver_from_time_history(th: TimeHistory, geometry=None, pilot: Mapping[st
     inputs = []
     for name in th.meta.inputs:
         channel, x = _input_series(th, name, travel)
-        times, values = _breakpoints(t, x - np.mean(x[:lead]), _resolution(name, travel))
+        res, noise = _resolution(name, travel), INPUT_NOISE_SIGMAS * noise_sigma(x)
+        times, values = _breakpoints(t, x - np.mean(x[:lead]), max(res, noise))
+        if noise > res and len(times) > 1:
+            values = tuple(float(v) for v in fitted_polyline(t, x - np.mean(x[:lead]), np.array(times)))
         inputs.append(Input(channel, times, values, relative=True))
     name = re.sub(r"[^A-Za-z0-9_-]+", "_", th.stem)
     return Maneuver(name, th.initial_condition(), float(t[-1]), tuple(inputs), _holds(pilot, th.path or th.stem),

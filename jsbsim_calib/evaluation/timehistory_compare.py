@@ -14,7 +14,8 @@ holding the flight test's final value (altitude and heading: the trimmed value),
 recorded surface is then a model output, not an input (replaying it too would count the
 pilot's correction twice). A metric on a channel the pilot holds is matched by construction
 and is not judged. A record that starts at a throttle stop (an idle glide, a full-throttle
-climb) is trimmed at that throttle with the flight path free.
+climb) is trimmed at that throttle with the flight path free
+(:meth:`~jsbsim_calib.data.timehistory.TimeHistory.initial_condition`, for every replay).
 
 The measurements are pure functions of a trace (:class:`Trace`: times, channels, the time the
 test's input starts and ends): response times 10-90 % (engine), signed peaks (pulses, rudder
@@ -35,7 +36,7 @@ from ..core.errors import CalibError
 from ..data.dynamic_tests import ROLL_WINDOW_S
 from ..data.flighttest import to_data_sign
 from ..data.part60_tests import INPUT_CHANNEL, METRIC_CHANNEL, NA, MetricVerdict, Part60Test, catalogue_test, judge
-from ..data.timehistory import DEPARTURE, TimeHistory, input_times, maneuver_from_time_history
+from ..data.timehistory import DEPARTURE, TimeHistory, input_times, maneuver_from_time_history, noise_sigma
 from ..jsbsim.trajectory import RATE_HZ, Hold, Maneuver, Trajectory, fly
 from .evaluate_dynamic import peak_rate, response_times, steady_roll_rate
 
@@ -50,7 +51,6 @@ END_S = 2.0              # "after" values of a change: mean over the last second
 RELEASE_S = 1.0          # a released control: the state held before it, mean over this second
 OSCILLATION_THRESHOLD = 0.05   # turning points stand out by this share of the oscillation's range
 NOISE_SIGMAS = 8.0             # ... and by this many standard deviations of the sample noise
-THROTTLE_STOP = 0.02     # a record starting this close to a throttle stop is trimmed at it (flight path free)
 
 # Replay policy. The axes a test examines are driven by the recorded inputs (open loop); an
 # axis the record (or the caller) names a pilot loop for is flown by the model's own test
@@ -131,13 +131,6 @@ def turning_points(x: np.ndarray, h: float) -> list[int]:
             pts.append(ext)
             direction, ext = -direction, i
     return pts
-
-
-def noise_sigma(x: np.ndarray) -> float:
-    """The sample noise of a smooth signal: the robust spread of its second differences."""
-    if x.size < 3:
-        return 0.0
-    return float(np.median(np.abs(np.diff(x, 2)))) / 0.6745 / math.sqrt(6.0)
 
 
 def oscillation(t: np.ndarray, x: np.ndarray, after_s: float, threshold: float = OSCILLATION_THRESHOLD
@@ -339,15 +332,6 @@ def replay_pilot(test: Part60Test | None, pilot: Mapping[str, str]) -> dict[str,
     return {a: loop for a, loop in pilot.items() if a not in examined}
 
 
-def _start(m: Maneuver, data: Mapping[str, np.ndarray]) -> Maneuver:
-    """A record starting at a throttle stop (an idle glide, a full-throttle climb) is trimmed
-    at that throttle with the flight path free: a level trim there is over-determined."""
-    thr = data.get("throttle_norm")
-    if thr is None or not (thr[0] <= THROTTLE_STOP or thr[0] >= 1.0 - THROTTLE_STOP):
-        return m
-    return replace(m, start=replace(m.start, mode="full_throttle", throttle=float(round(thr[0]))))
-
-
 def _windows(windows: list) -> list[Hold]:
     """Loops the record keeps with their targets and windows: flown as the pilot flew them."""
     return [Hold(w["loop"], w.get("target"), float(w.get("start_s", 0.0)), float(w.get("end_s", math.inf)))
@@ -378,10 +362,10 @@ def _holds(loops: Mapping[str, object], t: np.ndarray, data: Mapping[str, np.nda
 def replay_maneuver(sim, th: TimeHistory, test: Part60Test | None, pilot: Mapping[str, str] | None,
                     t: np.ndarray, data: Mapping[str, np.ndarray]) -> tuple[Maneuver, dict[str, str]]:
     """The record's replay (:func:`maneuver_from_time_history`, open loop) with the replay
-    policy applied: inputs of closed-loop axes dropped, the pilot's holds added, a start at a
-    throttle stop trimmed there. Returns the maneuver and the loops (axis -> loop)."""
+    policy applied: inputs of closed-loop axes dropped, the pilot's holds added. Returns the
+    maneuver and the loops (axis -> loop)."""
     loops = replay_pilot(test, dict(th.meta.pilot) if pilot is None else dict(pilot))
-    m = _start(maneuver_from_time_history(th, sim.geometry, {}), data)
+    m = maneuver_from_time_history(th, sim.geometry, {})
     inputs = tuple(i for i in m.inputs if AXIS_OF_INPUT.get(i.channel) not in loops)
     return replace(m, inputs=inputs, holds=_holds(loops, t, data)), loops
 
