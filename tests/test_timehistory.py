@@ -309,6 +309,23 @@ def test_a_record_starting_at_full_throttle_is_trimmed_there(c172):
     assert fly(c172, maneuver_from_time_history(th, c172.geometry)).time_s[-1] == pytest.approx(th.time_s[-1])
 
 
+@pytest.mark.parametrize("stem", ["S.13", "S.18"])
+def test_a_model_replaying_its_own_record_with_pilot_loops_flies_it_again(c172, stem):
+    """The Level 5 spiral (bank held 1-15 s, then released; altitude held until then) and flap
+    change (altitude held), noise-free: replayed with the record's loops, the committed C172
+    flies its record again. While a loop flies an axis its recorded surface is the pilot's
+    output; when the replay fed it under the loop too (the correction twice), the flap
+    change's pitch was 1.8 deg off and the spiral's 0.6."""
+    from jsbsim_calib.synthetic.maneuvers import fly_plan, load_plan
+    plan = load_plan("level5")
+    th = fly_plan(c172, replace(plan, maneuvers=tuple(m for m in plan.maneuvers if m.id == stem)), noise=0.0)[0]
+    m = maneuver_from_time_history(th, c172.geometry, th.meta.pilot)
+    flown = fly(c172, m).at(th.time_s - th.time_s[0])
+    for ch in ("pitch_deg", "roll_deg"):
+        err = np.max(np.abs(flown[ch] - th.channel(ch)))
+        assert err < 0.02, f"{stem} {ch}: {err:.3f} deg"
+
+
 def test_pilot_windows_round_trip_into_the_replays_holds_and_bad_windows_are_named():
     """A sidecar keeps the pilot's targets and windows; the replay flies them; a bad window is
     refused by its key."""

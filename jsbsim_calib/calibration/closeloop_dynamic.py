@@ -737,17 +737,23 @@ REPLAY_DRAWS = 2             # replays of every test with its inputs' noise redr
 REPLAY_SEED = 20261
 
 
+def _on_samples(knots: np.ndarray, t: np.ndarray) -> bool:
+    """Breakpoints at the record's sample times, increasing, from its first to its last."""
+    return knots.size > 1 and knots[0] == t[0] and knots[-1] == t[-1] and bool(np.all(np.diff(knots) > 0)) \
+        and bool(np.isin(knots, t).all())
+
+
 def _noisy(test: RecordedTest, rng: np.random.Generator) -> RecordedTest:
     """The test with each input's sensor noise drawn again: the recorded samples' noise
     (:func:`~jsbsim_calib.data.timehistory.noise_sigma`, the same level) through the replay's
     least-squares polyline on the input's breakpoints (a constant part is left to the offsets).
-    An input whose breakpoints are not the record's sample times, or whose samples the record
-    does not hold, is replayed as it is."""
+    An input whose breakpoints are not the record's sample times (a step where a pilot loop
+    takes the axis over), or whose samples the record does not hold, is replayed as it is."""
     t, inputs = np.asarray(test.time_s, float), []
     for i in test.maneuver.inputs:
         x, knots = test.record.get(i.channel), np.asarray(i.time_s, float)
         sigma = noise_sigma(np.asarray(x, float)) if x is not None and len(x) == t.size else 0.0
-        if sigma > 0 and knots.size > 1 and knots[0] == t[0] and knots[-1] == t[-1] and np.isin(knots, t).all():
+        if sigma > 0 and _on_samples(knots, t):
             i = replace(i, value=tuple(np.asarray(i.value) + fitted_polyline(t, rng.normal(0.0, sigma, t.size), knots)))
         inputs.append(i)
     return replace(test, maneuver=replace(test.maneuver, inputs=tuple(inputs)))

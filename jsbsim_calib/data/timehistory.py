@@ -94,6 +94,7 @@ MIXTURES = ("cruise", "climb")
 PILOT_AXES = ("pitch", "roll", "yaw", "speed")
 AXIS_CHANNELS = {"pitch": ("elevator_deg", "column_in"), "roll": ("aileron_deg", "wheel_deg"),
                  "yaw": ("rudder_deg", "pedal_in"), "speed": ("throttle_norm",)}
+AXIS_OF_CHANNEL = {c: axis for axis, names in AXIS_CHANNELS.items() for c in names}
 STEADY_LEAD_S = 1.0      # the steady start a record begins from: at most its first second
 THROTTLE_STOP = 0.02     # a record starting this close to a throttle stop is trimmed at it (flight path free)
 INPUT_NOISE_SIGMAS = 4.0  # a replayed input follows the record within this many standard deviations of its sample noise
@@ -690,6 +691,42 @@ def pilot_windows(holds: Sequence[Hold]) -> dict[str, object]:
     return out
 
 
+def _polyline(t: np.ndarray, x: np.ndarray, resolution: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """A recorded input as breakpoints (:func:`_breakpoints`): within its written resolution,
+    or, where the samples are noisier, within :data:`INPUT_NOISE_SIGMAS` of their noise with
+    the values fitted to the samples (:func:`fitted_polyline`), so that sensor noise on a
+    surface is not flown as surface motion."""
+    noise = INPUT_NOISE_SIGMAS * noise_sigma(x)
+    times, values = _breakpoints(t, x, max(resolution, noise))
+    if noise > resolution and len(times) > 1:
+        values = tuple(float(v) for v in fitted_polyline(t, x, np.array(times)))
+    return times, values
+
+
+def _loop_spans(pilot: Mapping[str, object] | None) -> dict[str, list[tuple[float, float]]]:
+    """Axis -> the (start, end) times its loops fly (a loop named alone: the whole record)."""
+    out = {}
+    for axis, loop in (pilot or {}).items():
+        windows = loop if isinstance(loop, list) else [{}]
+        out[axis] = [(float(w.get("start_s", 0.0)), float(w.get("end_s", math.inf))) for w in windows]
+    return out
+
+
+def _outside(inp: Input, spans: Sequence[tuple[float, float]], t: np.ndarray) -> Input:
+    """``inp`` with no change from the trim inside ``spans`` (edges included), where the model's
+    own pilot flies the axis: a recorded surface is there the record's pilot's output, and
+    replaying it under the loop would count the correction twice. The recorded input ends one
+    sample (of ``t``) before a loop takes over and resumes one sample after it lets go."""
+    kt, kv = np.asarray(inp.time_s, float), np.asarray(inp.value, float)
+    times = set(kt.tolist())
+    for a, b in spans:
+        times |= {x for x in (a, b) if kt[0] < x < kt[-1]}
+        times |= set(t[t < a][-1:].tolist()) | set(t[t > b][:1].tolist())
+    held = [any(a <= x <= b for a, b in spans) for x in sorted(times)]
+    values = [0.0 if h else float(np.interp(x, kt, kv)) for x, h in zip(sorted(times), held)]
+    return replace(inp, time_s=tuple(sorted(times)), value=tuple(values))
+
+
 def maneuver_from_time_history(th: TimeHistory, geometry=None, pilot: Mapping[str, str] | None = None, *,
                                travel: Mapping[str, ControlAxis] | None = None) -> Maneuver:
     """A maneuver that replays the record: from the trim at its steady start
@@ -698,22 +735,26 @@ def maneuver_from_time_history(th: TimeHistory, geometry=None, pilot: Mapping[st
     lines between samples; cockpit controls through the control-travel table: ``travel``,
     else the table of ``geometry``, with the table's linear neutrals). ``pilot`` {axis: loop}
     adds pilot loops holding the trimmed value on those axes, {axis: [windows]} the loops
-    with the targets and times the record keeps, mixed with the recorded input of the axis
-    (the recorded input is the feed-forward, the loop corrects the model's departure)."""
+    with the targets and times the record keeps; while a loop flies its axis, the axis's
+    recorded input is not replayed (:func:`_outside`: it is the record's pilot's output), so a
+    model replaying its own record flies it again."""
     if travel is None and geometry is not None and getattr(geometry, "control_travel_file", None):
         travel = load_control_travel(geometry.control_travel_file)
+    holds, flown = _holds(pilot, th.path or th.stem), _loop_spans(pilot)
     t = th.time_s - th.time_s[0]
     lead = th.steady_lead()
     inputs = []
     for name in th.meta.inputs:
         channel, x = _input_series(th, name, travel)
-        res, noise = _resolution(name, travel), INPUT_NOISE_SIGMAS * noise_sigma(x)
-        times, values = _breakpoints(t, x - np.mean(x[:lead]), max(res, noise))
-        if noise > res and len(times) > 1:
-            values = tuple(float(v) for v in fitted_polyline(t, x - np.mean(x[:lead]), np.array(times)))
-        inputs.append(Input(channel, times, values, relative=True))
+        inp = Input(channel, *_polyline(t, x - np.mean(x[:lead]), _resolution(name, travel)), relative=True)
+        spans = flown.get(AXIS_OF_CHANNEL.get(name, ""))
+        if spans:
+            inp = _outside(inp, spans, t)
+            if not any(inp.value):
+                continue
+        inputs.append(inp)
     name = re.sub(r"[^A-Za-z0-9_-]+", "_", th.stem)
-    return Maneuver(name, th.initial_condition(), float(t[-1]), tuple(inputs), _holds(pilot, th.path or th.stem),
+    return Maneuver(name, th.initial_condition(), float(t[-1]), tuple(inputs), holds,
                     title=th.meta.title)
 
 
