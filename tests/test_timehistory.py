@@ -282,7 +282,7 @@ def test_noise_is_seeded_and_stays_valid(c172, tmp_path):
 def test_a_noisy_input_is_replayed_as_the_surface_moved_not_as_its_sensor_noise(c172):
     """The pulses recorded with 0.1 deg of sensor noise on every surface: the replay's inputs
     follow the noise-free record's within 0.04 deg RMS (a constant left aside: the mean of
-    the steady start, which the loop's offsets fit), on a dozen breakpoints. Flying every
+    the steady start, which the loop's offsets fit), on at most 20 breakpoints. Flying every
     sample, as the replay did before INPUT_NOISE_SIGMAS, they were 0.08-0.09 deg off."""
     from jsbsim_calib.data.timehistory import SensorError
     traj = fly(c172, _flight(c172))
@@ -292,7 +292,7 @@ def test_a_noisy_input_is_replayed_as_the_surface_moved_not_as_its_sensor_noise(
     t = np.arange(0.0, 14.0, 0.05)
     for got, want in zip(maneuver_from_time_history(noisy, c172.geometry).inputs[:3], clean.inputs):
         err = np.interp(t, got.time_s, got.value) - np.interp(t, want.time_s, want.value)
-        assert np.std(err) < 0.04 and len(got.time_s) <= 12, got.channel
+        assert np.std(err) < 0.04 and len(got.time_s) <= 20, got.channel        # of 141 samples
 
 
 def test_a_record_starting_at_full_throttle_is_trimmed_there(c172):
@@ -307,6 +307,19 @@ def test_a_record_starting_at_full_throttle_is_trimmed_there(c172):
     level = c172.trim(replace(start, mode="level"))
     assert not level.trimmed and "more than full throttle" in level.reason
     assert fly(c172, maneuver_from_time_history(th, c172.geometry)).time_s[-1] == pytest.approx(th.time_s[-1])
+
+
+def test_a_busy_input_takes_its_noise_from_its_steady_lead():
+    """A 1.5 Hz, 2 deg input sampled at 10 Hz moves its second differences far more than 0.1 deg
+    of noise does: their spread reads 0.64-0.68 deg over seeds (on the identification plan's
+    elevator multisine 0.17, and a replay within 4 of that was 0.25 deg RMS off the input, 0.13
+    now). The ten samples of the steady lead before it read 0.07-0.17."""
+    from jsbsim_calib.data.timehistory import input_noise, noise_sigma
+    rng = np.random.default_rng(4)
+    t = np.arange(300) / 10.0
+    x = np.where(t >= 1.0, 2.0 * np.sin(2 * np.pi * 1.5 * (t - 1.0)), 0.0) + rng.normal(0.0, 0.1, t.size)
+    assert noise_sigma(x) > 0.5 and 0.05 < input_noise(x, 10) < 0.2
+    assert input_noise(x, 3) == noise_sigma(x)                    # too short a lead: the differences
 
 
 @pytest.mark.parametrize("stem", ["S.13", "S.18"])

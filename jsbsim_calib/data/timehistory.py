@@ -98,6 +98,7 @@ AXIS_OF_CHANNEL = {c: axis for axis, names in AXIS_CHANNELS.items() for c in nam
 STEADY_LEAD_S = 1.0      # the steady start a record begins from: at most its first second
 THROTTLE_STOP = 0.02     # a record starting this close to a throttle stop is trimmed at it (flight path free)
 INPUT_NOISE_SIGMAS = 4.0  # a replayed input follows the record within this many standard deviations of its sample noise
+MIN_LEAD_SAMPLES = 5     # a steady lead this long also measures an input's noise
 DEPARTURE = {"throttle_norm": 0.05, "flaps_deg": 1.0, "column_in": 0.05, "pedal_in": 0.05, "wheel_deg": 2.0}
 #   ... ended where an input departs from its first sample by this much (else 0.5 deg of a surface)
 MAX_LISTED = 10          # problems of one kind listed per column before a count of the rest
@@ -691,12 +692,19 @@ def pilot_windows(holds: Sequence[Hold]) -> dict[str, object]:
     return out
 
 
-def _polyline(t: np.ndarray, x: np.ndarray, resolution: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+def input_noise(x: np.ndarray, lead: int) -> float:
+    """A recorded input's sample noise: :func:`noise_sigma`, or the spread of its steady lead
+    where that is smaller (a busy input, a multisine, moves its second differences too)."""
+    sigma = noise_sigma(x)
+    return min(sigma, float(np.std(x[:lead], ddof=1))) if lead >= MIN_LEAD_SAMPLES else sigma
+
+
+def _polyline(t: np.ndarray, x: np.ndarray, resolution: float, sigma: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """A recorded input as breakpoints (:func:`_breakpoints`): within its written resolution,
-    or, where the samples are noisier, within :data:`INPUT_NOISE_SIGMAS` of their noise with
-    the values fitted to the samples (:func:`fitted_polyline`), so that sensor noise on a
-    surface is not flown as surface motion."""
-    noise = INPUT_NOISE_SIGMAS * noise_sigma(x)
+    or, where the samples are noisier, within :data:`INPUT_NOISE_SIGMAS` of their noise
+    ``sigma`` with the values fitted to the samples (:func:`fitted_polyline`), so that sensor
+    noise on a surface is not flown as surface motion."""
+    noise = INPUT_NOISE_SIGMAS * sigma
     times, values = _breakpoints(t, x, max(resolution, noise))
     if noise > resolution and len(times) > 1:
         values = tuple(float(v) for v in fitted_polyline(t, x, np.array(times)))
@@ -746,7 +754,8 @@ def maneuver_from_time_history(th: TimeHistory, geometry=None, pilot: Mapping[st
     inputs = []
     for name in th.meta.inputs:
         channel, x = _input_series(th, name, travel)
-        inp = Input(channel, *_polyline(t, x - np.mean(x[:lead]), _resolution(name, travel)), relative=True)
+        inp = Input(channel, *_polyline(t, x - np.mean(x[:lead]), _resolution(name, travel), input_noise(x, lead)),
+                    relative=True)
         spans = flown.get(AXIS_OF_CHANNEL.get(name, ""))
         if spans:
             inp = _outside(inp, spans, t)
