@@ -319,7 +319,7 @@ def test_a_busy_input_takes_its_noise_from_its_steady_lead():
     t = np.arange(300) / 10.0
     x = np.where(t >= 1.0, 2.0 * np.sin(2 * np.pi * 1.5 * (t - 1.0)), 0.0) + rng.normal(0.0, 0.1, t.size)
     assert noise_sigma(x) > 0.5 and 0.05 < input_noise(x, 10) < 0.2
-    assert input_noise(x, 3) == noise_sigma(x)                    # too short a lead: the differences
+    assert input_noise(x, 3) == 0.0                 # too short a lead to tell: flown as recorded
 
 
 @pytest.mark.parametrize("stem", ["S.13", "S.18"])

@@ -98,7 +98,7 @@ AXIS_OF_CHANNEL = {c: axis for axis, names in AXIS_CHANNELS.items() for c in nam
 STEADY_LEAD_S = 1.0      # the steady start a record begins from: at most its first second
 THROTTLE_STOP = 0.02     # a record starting this close to a throttle stop is trimmed at it (flight path free)
 INPUT_NOISE_SIGMAS = 4.0  # a replayed input follows the record within this many standard deviations of its sample noise
-MIN_LEAD_SAMPLES = 5     # a steady lead this long also measures an input's noise
+MIN_LEAD_SAMPLES = 5     # a steady lead this long measures an input's noise (shorter: the input is flown as recorded)
 DEPARTURE = {"throttle_norm": 0.05, "flaps_deg": 1.0, "column_in": 0.05, "pedal_in": 0.05, "wheel_deg": 2.0}
 #   ... ended where an input departs from its first sample by this much (else 0.5 deg of a surface)
 MAX_LISTED = 10          # problems of one kind listed per column before a count of the rest
@@ -693,10 +693,11 @@ def pilot_windows(holds: Sequence[Hold]) -> dict[str, object]:
 
 
 def input_noise(x: np.ndarray, lead: int) -> float:
-    """A recorded input's sample noise: :func:`noise_sigma`, or the spread of its steady lead
-    where that is smaller (a busy input, a multisine, moves its second differences too)."""
-    sigma = noise_sigma(x)
-    return min(sigma, float(np.std(x[:lead], ddof=1))) if lead >= MIN_LEAD_SAMPLES else sigma
+    """A recorded input's sample noise: the spread of its steady lead's samples, or of its
+    second differences (:func:`noise_sigma`) where that is smaller (a busy input, a multisine,
+    moves its differences too). 0 where the lead is shorter than :data:`MIN_LEAD_SAMPLES`:
+    the differences alone cannot tell a busy input from noise, so it is flown as recorded."""
+    return min(noise_sigma(x), float(np.std(x[:lead], ddof=1))) if lead >= MIN_LEAD_SAMPLES else 0.0
 
 
 def _polyline(t: np.ndarray, x: np.ndarray, resolution: float, sigma: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
