@@ -77,7 +77,7 @@ from .diagnose import ALPHA, Correlate
 from .effects import LIBRARY_DIR, Effect, library
 from .equation_error import Column, Ranked, effect_columns, equation_error, factor_columns, inertia_columns, rank, \
     term_columns
-from .fit import LEGS, FitResult
+from .fit import FitResult
 from .loop import (MATERIAL, MAX_EFFECTS, LoopResult, NOISE_FLOOR, RULES as LOOP_RULES, Candidate, Change, Round, Rows,
                    cross_validate as loop_cross_validate, run_loop)
 from .synthesis import EFFECT_PREFIX, Linearization, Selection, dictionary, select, term_effect
@@ -87,12 +87,7 @@ from .trims import STEP_PRIOR
 DYNAMIC_LIBRARY_DIR = LIBRARY_DIR / "dynamic"
 CV_FOLDS = 4                 # cross-validation folds (whole maneuvers; fewer with fewer tests)
 CANDIDATE_NFEV = 12          # function evaluations of a candidate's fit (from the equation error's estimate)
-CANDIDATE_LEGS = ((1.0, 0.002),)   # one leg: the start is close, no path of priors
 REFIT_NFEV = 80
-# The loop's fits stop when an iteration lowers the cost by less than this share of it. On the
-# Level 5 campaign (46,640 rows) a refit reached 1e-4 of its final cost in 7 iterations and
-# spent 28 more (150 s) on the last 0.02 %, which moves no explained share by 0.1 point.
-FIT_TOLERANCE = 1e-4
 MIN_SAMPLES = 10             # samples a channel needs to be diagnosed
 MIN_CORRELATION = 0.3        # |r| of a state or input listed as a correlate
 FINALISTS = 3                # named candidates flown per round (the strongest by equation error)
@@ -882,10 +877,8 @@ class TimeHistoryEvidence:
         return [f for f in step_factors(f"{ch.axis} dynamics") if f not in ch.effect.same_as]
 
     def fit_options(self, what: str) -> dict:
-        both = {"prior": STEP_PRIOR, "prior_center": None, "ftol": FIT_TOLERANCE}
-        if what == "candidate":
-            return {**both, "legs": CANDIDATE_LEGS, "max_nfev": CANDIDATE_NFEV}
-        return {**both, "legs": LEGS[-2:], "max_nfev": REFIT_NFEV}
+        return {"prior": STEP_PRIOR, "prior_center": None,
+                "max_nfev": CANDIDATE_NFEV if what == "candidate" else REFIT_NFEV}
 
     def judge(self, ch: Change, cand: Candidate, current: Simulator, factors: FactorSet) -> list[str]:
         return []
