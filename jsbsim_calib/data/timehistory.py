@@ -731,9 +731,9 @@ def _outside(inp: Input, spans: Sequence[tuple[float, float]], t: np.ndarray) ->
     for a, b in spans:
         times |= {x for x in (a, b) if kt[0] < x < kt[-1]}
         times |= set(t[t < a][-1:].tolist()) | set(t[t > b][:1].tolist())
-    held = [any(a <= x <= b for a, b in spans) for x in sorted(times)]
-    values = [0.0 if h else float(np.interp(x, kt, kv)) for x, h in zip(sorted(times), held)]
-    return replace(inp, time_s=tuple(sorted(times)), value=tuple(values))
+    times = sorted(times)
+    values = [0.0 if any(a <= x <= b for a, b in spans) else float(np.interp(x, kt, kv)) for x in times]
+    return replace(inp, time_s=tuple(times), value=tuple(values))
 
 
 def maneuver_from_time_history(th: TimeHistory, geometry=None, pilot: Mapping[str, str] | None = None, *,

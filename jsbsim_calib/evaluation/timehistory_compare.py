@@ -361,13 +361,12 @@ def _holds(loops: Mapping[str, object], t: np.ndarray, data: Mapping[str, np.nda
 
 def replay_maneuver(sim, th: TimeHistory, test: Part60Test | None, pilot: Mapping[str, str] | None,
                     t: np.ndarray, data: Mapping[str, np.ndarray]) -> tuple[Maneuver, dict[str, str]]:
-    """The record's replay (:func:`maneuver_from_time_history`, open loop) with the replay
-    policy applied: inputs of closed-loop axes dropped, the pilot's holds added. Returns the
-    maneuver and the loops (axis -> loop)."""
+    """The record's replay (:func:`maneuver_from_time_history`: an axis's recorded input is
+    not replayed while a loop flies it) with Part 60's holds: a loop named alone holds the
+    record's end value, not the trim's. Returns the maneuver and the loops (axis -> loop)."""
     loops = replay_pilot(test, dict(th.meta.pilot) if pilot is None else dict(pilot))
-    m = maneuver_from_time_history(th, sim.geometry, {})
-    inputs = tuple(i for i in m.inputs if AXIS_OF_INPUT.get(i.channel) not in loops)
-    return replace(m, inputs=inputs, holds=_holds(loops, t, data)), loops
+    m = maneuver_from_time_history(th, sim.geometry, loops)
+    return replace(m, holds=_holds(loops, t, data)), loops
 
 
 def _fly(sim, th: TimeHistory, test, pilot, t, data) -> tuple[Maneuver | None, Trajectory | None, dict, str]:
