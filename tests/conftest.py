@@ -83,13 +83,15 @@ def synthetic_poh():
     return _synthetic_poh
 
 
-# The longest tests (100-220 s each on 2 cores) start first: a long test that starts last leaves
+# The longest tests (40-190 s each on 2 cores) start first: a long test that starts last leaves
 # the other worker idle at the end (longest-first scheduling; the order is the same on every
 # worker, as pytest-xdist requires).
-LONGEST_FIRST = ("test_real_c172_trims_without_pfactor_step_find_the_yaw_effect",
-                 "test_main_job_rewrites_the_committed_c172_byte_for_byte",
-                 "test_the_95_percent_bands_cover_the_truth_in_90_to_98_percent_of_50_campaigns",
-                 "test_a_pair_of_undeclared_effects_is_found")
+LONGEST_FIRST = ("test_main_job_rewrites_the_committed_c172_byte_for_byte",
+                 "test_real_c172_trims_without_pfactor_step_find_the_yaw_effect",
+                 "test_hand_edits_survive_calibrate_and_generate",
+                 "test_stage2a_flap_folds_refit_only_the_steps_that_use_them",
+                 "test_the_plan_aims_at_the_loosest_factors_and_beats_random_level5_maneuvers",
+                 "test_sr20_steady_fit_from_a_perturbed_start_lands_on_the_committed_factors")
 
 
 def pytest_collection_modifyitems(session, config, items):
