@@ -36,7 +36,8 @@ from ..core.errors import CalibError
 from ..data.dynamic_tests import ROLL_WINDOW_S
 from ..data.flighttest import to_data_sign
 from ..data.part60_tests import INPUT_CHANNEL, METRIC_CHANNEL, NA, MetricVerdict, Part60Test, catalogue_test, judge
-from ..data.timehistory import DEPARTURE, TimeHistory, input_times, maneuver_from_time_history, noise_sigma
+from ..data.timehistory import (AXIS_OF_CHANNEL, DEPARTURE, TimeHistory, input_times, maneuver_from_time_history,
+                               noise_sigma)
 from ..jsbsim.trajectory import RATE_HZ, Hold, Maneuver, Trajectory, fly
 from .evaluate_dynamic import peak_rate, response_times, steady_roll_rate
 
@@ -60,7 +61,6 @@ EXAMINED_AXES = {
     "2.c.1.b": ("speed",), "2.c.9.b": ("pitch",), "2.d.2": ("roll",),
     "2.d.6.a/b": ("yaw",), "2.d.7": ("yaw",), "2.d.8": ("yaw",),
 }
-AXIS_OF_INPUT = {"elevator_deg": "pitch", "aileron_deg": "roll", "rudder_deg": "yaw", "throttle_norm": "speed"}
 LOOP_CHANNEL = {"pitch": "pitch_deg", "bank": "roll_deg", "sideslip": "beta_deg", "airspeed": "kcas",
                 "altitude": "pressure_alt_ft", "heading": "heading_deg"}
 TRIMMED_TARGET = ("altitude", "heading")     # loops that hold the trimmed value (no data target)
@@ -319,7 +319,7 @@ def _input_window(test: Part60Test | None, t: np.ndarray, data: Mapping[str, np.
     if ch is None:
         return 0.0, math.nan
     start, end = input_times(t, data.get(ch), DEPARTURE.get(ch, 0.5), lead)
-    loop = pilot.get(AXIS_OF_INPUT.get(ch, ""))
+    loop = pilot.get(AXIS_OF_CHANNEL.get(ch, ""))
     released = loop[-1].get("end_s") if isinstance(loop, list) and loop else None
     return start, float(released) if released is not None else end
 
