@@ -85,17 +85,20 @@ def trace(base: Simulator, regressor: str, meaning: str, tests, target, ds) -> s
         sim.add_effect(eff)
         start = base.factors.with_extra(extra)
 
-        def residual(x):
+        def flown(x) -> dict[str, float]:
             sim.set_factors(start.updated({"K_Clp": float(x[1]), next(iter(extra)): float(x[0])}))
-            got = rates(sim, steps)
+            return rates(sim, steps)
+
+        def residual(x):
+            got = flown(x)
             r = np.array([(got[i] - target[i]) / 2.0 for i in STEPS])
-            return np.where(np.isfinite(r), r, 50.0)         # a step the model cannot fly
+            return np.where(np.isfinite(r), r, 50.0)         # a step the model cannot fly: the solver's penalty
 
         slope = float(np.max(np.abs(residual([1e-3, k_clp]) - residual([0.0, k_clp])))) / 1e-3
         fit = least_squares(residual, [0.0, k_clp], bounds=([-np.inf, f.lower], [np.inf, f.upper]),
                             x_scale=[1.0 / slope if slope > 0 else 1.0, 0.1], diff_step=1e-3)
         k, clp = fit.x
-        power = _power(residual, target, k, k_clp)
+        power = _power(flown(np.array([k, k_clp])), flown(np.array([0.0, k_clp])))
         residual(fit.x)
         got, trims = rates(sim, tests.values()), aileron_within(sim, ds)
     both = all(abs(got[i] - target[i]) <= 2.0 for i in STEPS)
@@ -122,14 +125,11 @@ def _conflicts(got, target, trims, clp, f) -> list[str]:
     return out
 
 
-def _power(residual, target, k: float, k_clp: float) -> str:
+def _power(with_k: dict[str, float], without: dict[str, float]) -> str:
     """What the term alone does at each step: the steady roll rate with it over the rate
     without it, both at the product's K_Clp (for an aileron term the aileron power's ratio,
-    for a damping term the inverse of the damping's)."""
-    with_k = residual([k, k_clp]) * 2.0
-    without = residual([0.0, k_clp]) * 2.0
-    ratios = [(w + target[i]) / (o + target[i]) for w, o, i in zip(with_k, without, STEPS)]
-    return "roll rate x" + " / x".join(f"{x:.2f}" for x in ratios)
+    for a damping term the inverse of the damping's); NaN where a step is not flown."""
+    return "roll rate x" + " / x".join(f"{with_k[i] / without[i]:.2f}" for i in STEPS)
 
 
 if __name__ == "__main__":
