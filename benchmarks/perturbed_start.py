@@ -2,7 +2,8 @@
 
     python benchmarks/perturbed_start.py
 
-Starts stage 1 1e-8 (normalized) away from the neutral factors, runs stages 2a and 2b from
+Starts stage 1 1e-8 (normalized) away from where the main job starts (neutral factors, the
+model switches as the aircraft file sets them), runs stages 2a and 2b from
 there (as the main job does, nothing written) and prints, against the committed product
 (``aircraft/c172/calibration.json``): each fitted factor's move in standard errors of the fit
 that set it last, and each POH and flight-test prediction's move as a share of its tolerance,
@@ -25,7 +26,7 @@ from jsbsim_calib.calibration.workflow import aircraft_data, run_dynamic, run_st
 from jsbsim_calib.data.flighttest import QuirkWarning
 from jsbsim_calib.data.schemas import METRICS
 from jsbsim_calib.evaluation.evaluate import evaluate_dataset
-from jsbsim_calib.factors import FactorSet
+from jsbsim_calib.factors import FactorSet, switches
 from jsbsim_calib.jsbsim.product import AircraftPaths
 from jsbsim_calib.jsbsim.simulator import Simulator
 
@@ -61,7 +62,8 @@ def prediction_moves(factors: FactorSet) -> list[tuple[float, str]]:
 
 
 def main() -> None:
-    fs = FactorSet()
+    with Simulator(ROOT, "c172") as sim:
+        fs = switches(sim.declared)                 # where the main job starts: neutral, the file's switches
     x = fs.vector(STEADY_NAMES)
     start = fs.with_vector(STEADY_NAMES, x + PERTURBATION * np.where(np.arange(len(x)) % 2, -1.0, 1.0))
     t0 = time.perf_counter()

@@ -46,6 +46,7 @@ from ..jsbsim.simulator import Simulator
 from .points import point_sets, stage1_subset
 from .steady import steady_stage
 from .trims import TRIM_STEPS, TrimStep, trims_stage
+from .workflow import stage_start
 
 FLAG_RATIO = 1.5             # held-out RMSE above this many times the fit RMSE is flagged ...
 RESOLUTION = 0.1             # ... unless it is below this share of the metric's tolerance (the data's resolution)
@@ -328,19 +329,14 @@ def _record(root: Path, name: str) -> dict:
 
 def stage_factors(root: Path, name: str, stage: str) -> FactorSet:
     """The factors a stage produced, from its record in calibration.json: stage 1's fits
-    (``steady``), or those and every stage-2a step after them (``trims``); later factors neutral."""
+    (``steady``), or those and every stage-2a step after them (``trims``); the model switches
+    as the aircraft file sets them (the stage fitted around them), later factors neutral."""
     stages = _record(root, name).get("stages", {})
     needed = ("steady",) if stage == "steady" else ("steady", "trims")
     missing = [s for s in needed if s not in stages]
     if missing:
         raise ModelError(f"aircraft/{name}/calibration.json has no record of stage(s) {', '.join(missing)}")
-    fits = [stages["steady"]["fit"], stages["steady"]["fuel_flow"]]
-    if stage == "trims":
-        fits += stages["trims"]["steps"]
-    values: dict[str, float] = {}
-    for f in fits:
-        values.update({k: v["final"] for k, v in f["factors"].items()})
-    return FactorSet(values)
+    return stage_start(root, name, "trims" if stage == "steady" else "dynamic")[0]
 
 
 def without_rows(ds: Dataset, rows: Sequence[int], tag: str) -> Dataset:
