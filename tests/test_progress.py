@@ -11,7 +11,7 @@ from pathlib import Path
 from jsbsim_calib.calibration.fit import WorkLine
 from jsbsim_calib.calibration.workflow import recorded_start, stage_plan
 from jsbsim_calib.cli import main
-from jsbsim_calib.factors import REGISTRY, FactorSet, set_in
+from jsbsim_calib.factors import REGISTRY, FactorSet, set_in, switches
 from jsbsim_calib.jsbsim.aircraft import read_factors
 from jsbsim_calib.jsbsim.product import AircraftPaths, read_calibration, read_calibration_record, rounded
 from jsbsim_calib.report.progress import PlanStep, Progress
@@ -108,7 +108,8 @@ def test_log_file_holds_what_the_command_prints(tmp_path, capsys):
 
 def test_a_stage_alone_starts_from_what_the_earlier_stages_recorded():
     """calibrate --stage trims / dynamic: stage 1's (and 2a's) factors as calibration.json
-    records their fits, the stage's own factors neutral; the committed c172 (the main job's
+    records their fits, the model switches as the aircraft file sets them, the stage's own
+    factors neutral; the committed c172 (the main job's
     product) is that start plus stage 2b's fitted factors, so the start is the main job's."""
     paths = AircraftPaths(REPO, "c172")
     record, declared = read_calibration_record(paths), read_factors(paths.aircraft_xml)
@@ -118,7 +119,7 @@ def test_a_stage_alone_starts_from_what_the_earlier_stages_recorded():
     for n in REGISTRY:
         fitted = n in set_in(("steady", "fuel flow"))
         want = (record["stages"]["steady"]["fit"]["factors"].get(n) or record["stages"]["steady"]["fuel_flow"]
-                ["factors"].get(n) or {}).get("final") if fitted else FactorSet()[n]
+                ["factors"].get(n) or {}).get("final") if fitted else switches(declared)[n]
         assert trims[n] == want, n
     dynamic, text = recorded_start(record, declared, "dynamic")
     assert "stage 1 and stage 2a wrote" in text
@@ -132,7 +133,7 @@ def test_a_stage_alone_starts_from_what_the_earlier_stages_recorded():
     again, _ = recorded_start(record, declared, "dynamic")
     assert again.as_dict() == dynamic.as_dict()
     neutral, text = recorded_start({}, declared, "dynamic")
-    assert neutral.as_dict() == FactorSet().as_dict() and "neutral factors" in text
+    assert neutral.as_dict() == switches(declared).as_dict() and "neutral factors" in text
 
 
 def test_the_plan_of_the_main_job_lists_the_fits_with_their_last_trims():

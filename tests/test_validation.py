@@ -59,13 +59,29 @@ def test_stage_factors_are_the_stages_own():
     f1, f2 = stage_factors(REPO, "c172", "steady"), stage_factors(REPO, "c172", "trims")
     neutral = FactorSet()
     assert f1["K_HP"] == rec["steady"]["fit"]["factors"]["K_HP"]["final"] and f1["K_PF"] == neutral["K_PF"]
-    assert f2["K_PF"] == rec["trims"]["steps"][2]["factors"]["K_PF"]["final"] and f2["K_Clp"] == neutral["K_Clp"]
+    assert f2["K_PF"] == rec["trims"]["steps"][-1]["factors"]["K_PF"]["final"] and f2["K_Clp"] == neutral["K_Clp"]
     snap = stage_data(REPO, "c172", ("snapshot",))["snapshot"]
     with Simulator(REPO, "c172", factors=f2) as sim:
         s = evaluate_dataset(sim, snap).summary()
     for m, want in rec["trims"]["flight_test"]["steady refit"]["snapshot"].items():
         assert s[m].rmse == pytest.approx(want["rmse"], abs=1e-6)
 
+
+
+def test_stage_factors_keep_the_model_switches_the_aircraft_file_sets(tmp_path):
+    """A fold refits around the switches the stage was fitted with: a slipstream switched on by
+    hand in the aircraft file stays on in every fold (it was dropped, and the folds then judged
+    another model than the stage's)."""
+    import shutil
+    root = tmp_path / "root"
+    for d in ("aircraft", "engine", "airfoils", "data"):
+        shutil.copytree(REPO / d, root / d, ignore=shutil.ignore_patterns("backup"))
+    xml = root / "aircraft" / "c172" / "c172.xml"
+    off = '<property value="0" persistent="true"> calibration/K_swirl </property>'
+    assert off in xml.read_text()
+    xml.write_text(xml.read_text().replace(off, off.replace('value="0"', 'value="1"')))
+    assert stage_factors(root, "c172", "steady")["K_swirl"] == stage_factors(root, "c172", "trims")["K_swirl"] == 1.0
+    assert stage_factors(REPO, "c172", "steady")["K_swirl"] == 0.0
 
 # --------------------------------------------------------------------------- NaN never passes
 def _metric(fit: float, held: float, failed: int = 0, n: int = 3) -> FoldMetric:
