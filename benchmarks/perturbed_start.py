@@ -8,7 +8,7 @@ there (as the main job does, nothing written) and prints, against the committed 
 (``aircraft/c172/calibration.json``): each fitted factor's move in standard errors of the fit
 that set it last, and each POH and flight-test prediction's move as a share of its tolerance,
 with the stated tolerances (docs/model.md, "Reproducible fits": 4 standard errors, 0.2 of a
-tolerance). About 6 min on one core. The SR20's stage 1 is checked the same way, at one
+tolerance). About 2-4 min on one core. The SR20's stage 1 is checked the same way, at one
 standard error and a tenth of a tolerance, by ``tests/test_reproducible.py``.
 """
 from __future__ import annotations
@@ -80,10 +80,10 @@ def main() -> None:
     print(f"C172 chain from a start {PERTURBATION:g} away: {wall:.0f} s")
     print("largest factor moves (standard errors of the fit that set each last):")
     for k, n in moves[:5]:
-        print(f"  {n:<18} {k:6.2f}")
+        print(f"  {n:<18} {k:9.2e}")
     print("largest prediction moves (share of the tolerance):")
     for s, where in shares[:5]:
-        print(f"  {where:<45} {s:6.3f}")
+        print(f"  {where:<45} {s:9.2e}")
     ok = moves[0][0] <= FACTOR_TOL_SE and shares[0][0] <= PREDICTION_TOL
     print(f"stated: factors <= {FACTOR_TOL_SE:g} standard errors, predictions <= {PREDICTION_TOL:g} of a "
           f"tolerance: {'MET' if ok else 'NOT MET'}")
