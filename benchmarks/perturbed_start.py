@@ -27,6 +27,7 @@ from jsbsim_calib.data.flighttest import QuirkWarning
 from jsbsim_calib.data.schemas import METRICS
 from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.factors import FactorSet, switches
+from jsbsim_calib.jsbsim.aircraft import read_factors
 from jsbsim_calib.jsbsim.product import AircraftPaths
 from jsbsim_calib.jsbsim.simulator import Simulator
 
@@ -62,8 +63,7 @@ def prediction_moves(factors: FactorSet) -> list[tuple[float, str]]:
 
 
 def main() -> None:
-    with Simulator(ROOT, "c172") as sim:
-        fs = switches(sim.declared)                 # where the main job starts: neutral, the file's switches
+    fs = switches(read_factors(AircraftPaths(ROOT, "c172").aircraft_xml))   # where the main job starts
     x = fs.vector(STEADY_NAMES)
     start = fs.with_vector(STEADY_NAMES, x + PERTURBATION * np.where(np.arange(len(x)) % 2, -1.0, 1.0))
     t0 = time.perf_counter()

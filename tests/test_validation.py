@@ -67,7 +67,6 @@ def test_stage_factors_are_the_stages_own():
         assert s[m].rmse == pytest.approx(want["rmse"], abs=1e-6)
 
 
-
 def test_stage_factors_keep_the_model_switches_the_aircraft_file_sets(tmp_path):
     """A fold refits around the switches the stage was fitted with: a slipstream switched on by
     hand in the aircraft file stays on in every fold (it was dropped, and the folds then judged
@@ -82,6 +81,7 @@ def test_stage_factors_keep_the_model_switches_the_aircraft_file_sets(tmp_path):
     xml.write_text(xml.read_text().replace(off, off.replace('value="0"', 'value="1"')))
     assert stage_factors(root, "c172", "steady")["K_swirl"] == stage_factors(root, "c172", "trims")["K_swirl"] == 1.0
     assert stage_factors(REPO, "c172", "steady")["K_swirl"] == 0.0
+
 
 # --------------------------------------------------------------------------- NaN never passes
 def _metric(fit: float, held: float, failed: int = 0, n: int = 3) -> FoldMetric:

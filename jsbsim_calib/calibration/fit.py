@@ -22,7 +22,7 @@ from ..core.executor import SERIAL, Executor
 from ..factors import FactorSet
 from ..jsbsim.simulator import Simulator
 
-# The fit (see fit; README, "Reproducible fits", for the measurements behind each value)
+# The fit (see fit; docs/model.md, "Reproducible fits", for the measurements behind each value)
 PRIOR_WEIGHT = 0.5           # pull of normalized factors toward the prior centre
 LEGS = ((6.0, 0.02), (2.0, 0.02), (1.0, 0.02), (1.0, 0.002))   # (prior multiple, finite-difference step)
 FIT_TOL = 1e-6               # ftol = xtol = gtol of the least-squares solver (1e-9 before: the same costs, 15 % more time)

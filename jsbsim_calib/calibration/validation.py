@@ -41,12 +41,13 @@ from ..core.errors import InputError, ModelError
 from ..core.executor import SERIAL, Executor
 from ..evaluation.evaluate import MetricSummary, PointResult, evaluate_dataset, summarize
 from ..factors import FactorSet
+from ..jsbsim.aircraft import read_factors
 from ..jsbsim.product import AircraftPaths, load_aircraft_geometry
 from ..jsbsim.simulator import Simulator
 from .points import point_sets, stage1_subset
 from .steady import steady_stage
 from .trims import TRIM_STEPS, TrimStep, trims_stage
-from .workflow import stage_start
+from .workflow import recorded_start
 
 FLAG_RATIO = 1.5             # held-out RMSE above this many times the fit RMSE is flagged ...
 RESOLUTION = 0.1             # ... unless it is below this share of the metric's tolerance (the data's resolution)
@@ -331,12 +332,13 @@ def stage_factors(root: Path, name: str, stage: str) -> FactorSet:
     """The factors a stage produced, from its record in calibration.json: stage 1's fits
     (``steady``), or those and every stage-2a step after them (``trims``); the model switches
     as the aircraft file sets them (the stage fitted around them), later factors neutral."""
-    stages = _record(root, name).get("stages", {})
+    record = _record(root, name)
     needed = ("steady",) if stage == "steady" else ("steady", "trims")
-    missing = [s for s in needed if s not in stages]
+    missing = [s for s in needed if s not in record.get("stages", {})]
     if missing:
         raise ModelError(f"aircraft/{name}/calibration.json has no record of stage(s) {', '.join(missing)}")
-    return stage_start(root, name, "trims" if stage == "steady" else "dynamic")[0]
+    declared = read_factors(AircraftPaths(root, name).aircraft_xml)
+    return recorded_start(record, declared, "trims" if stage == "steady" else "dynamic")[0]
 
 
 def without_rows(ds: Dataset, rows: Sequence[int], tag: str) -> Dataset:
