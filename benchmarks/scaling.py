@@ -15,7 +15,7 @@ and 2b. It prints:
   speed-up at 16 and 64 workers (a fit of n factors has at most n independent Jacobian
   columns: more workers than that wait);
 * with ``--profile``, where the one-worker steady stage spends its time: JSBSim trims, loads,
-  sandbox files, pickling, the least-squares algebra, and the rest.
+  resets, sandbox files, pickling, the least-squares algebra, and the rest.
 
 Compare figures only within one run on one machine. Issue 25's targets: the steady stage on 2
 workers >= 1.8x faster than on 1; a serial fraction that predicts >= 8x at 16 workers; Dask
@@ -122,6 +122,7 @@ def table(title: str, job, kinds: list[str], workers: list[int], serial: bool = 
 PROFILE_GROUPS = (   # (what, functions whose cumulative time it is), in the order printed
     ("JSBSim trims", ("_trim_once",)),
     ("JSBSim loads", ("_load",)),
+    ("JSBSim resets", ("_reset",)),
     ("sandbox files", ("_write_sandbox",)),
     ("pickling", ("dumps", "loads")),
 )

@@ -1,11 +1,13 @@
 """Independent work on other executors gives the same bits: a fit whose Jacobian columns and
 trial points run in a process pool or on a dask.distributed LocalCluster lands on exactly the
 factors of the same fit in this process; a Simulator pickles and rebuilds; a fresh load is
-history-free; propeller tables kept per factor set fly as freshly baked ones."""
+history-free, and so is a reset after trims; propeller tables kept per factor set fly as
+freshly baked ones."""
 from __future__ import annotations
 
 import pickle
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import cloudpickle
@@ -13,7 +15,7 @@ import numpy as np
 import pytest
 
 from jsbsim_calib.calibration.fit import fit
-from jsbsim_calib.calibration.points import PointSet, point_residuals
+from jsbsim_calib.calibration.points import KINDS, PointSet, point_residuals
 from jsbsim_calib.evaluation.evaluate_dynamic import evaluate_dynamic
 from jsbsim_calib.core.executor import SERIAL, DaskExecutor, ProcessExecutor, make_executor
 from jsbsim_calib.core.errors import CalibError
@@ -55,6 +57,64 @@ def test_a_fresh_load_is_history_free():
             t = sim.trim(A)
             results.append((t.alpha_deg, t.elevator_deg, t.throttle, t.rpm))
     assert results[0] == results[1] == results[2]
+
+
+def _properties(fdm) -> dict[str, float]:
+    """Every property of a JSBSim but the gear's side friction, which JSBSim leaves uninitialized
+    until a wheel touches the ground (two fresh loads differ there too)."""
+    names = [line.split()[0] for line in fdm.query_property_catalog("").splitlines() if line.strip()]
+    return {n: fdm[n] for n in names if not n.endswith("side_friction_coeff")}
+
+
+def _differences(a: dict, b: dict) -> list[str]:
+    same = lambda x, y: x == y or (x != x and y != y)          # NaN where both are NaN
+    return [f"{n}: {a[n]!r} vs {b.get(n)!r}" for n in a if not same(a[n], b.get(n))] + \
+        [f"{n} missing" for n in b if n not in a]
+
+
+PILOT = ("accelerations/a-pilot-", "accelerations/n-pilot-")   # outputs of the last frame, fed back nowhere
+
+
+@pytest.mark.parametrize("name, kinds", [("c172", ("poh_climb", "poh_cruise", "flight_test", "flap_climb")),
+                                         ("sr20", ("poh_climb", "poh_cruise"))])
+def test_a_reset_after_trims_of_every_kind_is_a_fresh_load(name, kinds):
+    """fresh() after trims resets the loaded JSBSim instead of loading it again: every property
+    is then a fresh load's (the pilot's accelerations aside, which the first frame recomputes:
+    checked after a trim), and a trim from there gives a fresh load's bits. The history: a spread
+    of every data kind (flaps, weights, altitudes, the SR20's governor), a turn and a trim with
+    no equilibrium."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        data = aircraft_data(REPO, name, kinds)
+    with Simulator(REPO, name) as sim, Simulator(REPO, name) as loaded:
+        conds = []
+        for ds in data.values():
+            cs = KINDS[ds.kind].conditions(ds, sim.geometry)
+            conds += cs[::max(1, len(cs) // 5)]
+        conds += [replace(conds[0], kcas=25.0), replace(conds[-1], bank_deg=30.0, turn="coordinated")]
+        results = [sim.trim(c, key=i) for i, c in enumerate(conds)]
+        assert not results[-2].trimmed and sum(r.trimmed for r in results) >= 15
+        loads = sim.loads
+        sim.fresh()
+        assert (sim.loads, sim.resets) == (loads, 1)               # reset, not loaded
+        got, want = _properties(sim.fdm), _properties(loaded.fdm)
+        assert not [d for d in _differences(got, want) if not d.startswith(PILOT)]
+        probe = conds[len(conds) // 2]
+        a, b = sim.trim(probe), loaded.trim(probe)
+        assert a.trimmed and (a.alpha_deg, a.elevator_deg, a.throttle, a.rpm) == \
+            (b.alpha_deg, b.elevator_deg, b.throttle, b.rpm)
+        assert not _differences(_properties(sim.fdm), _properties(loaded.fdm))
+
+
+def test_a_jsbsim_handed_out_is_loaded_anew():
+    """What a caller did with ``sim.fdm`` is not known: the next fresh() loads the aircraft."""
+    with Simulator(REPO, "c172") as sim:
+        sim.trim(A)
+        sim.fresh()
+        assert (sim.loads, sim.resets) == (1, 1)
+        sim.fdm.run()
+        sim.fresh()
+        assert (sim.loads, sim.resets) == (2, 1)
 
 
 def test_propeller_tables_kept_per_factor_set_fly_as_freshly_baked_ones():

@@ -230,7 +230,7 @@ def _information(jac: np.ndarray | None, labels: list[str], names: list[str]) ->
 
 class FitProblem:
     """A fit's residuals as a pure function of (normalized factors, trim warm starts, prior
-    multiple): every evaluation starts from a freshly loaded JSBSim and the given warm starts,
+    multiple): every evaluation starts from a JSBSim in a fresh load's state and the given warm starts,
     so that it gives the same bits in this process or in any executor's worker, whatever ran
     before. Called with an item ``(x, warm_starts, prior_multiple)`` it returns the residuals
     (the executors' form); with ``(x, warm_starts, prior_multiple, True)``, the whole
@@ -247,7 +247,7 @@ class FitProblem:
         sim = self.sim
         trims0 = sim.trims
         sim.trim_cache = dict(warm)
-        if not sim.set_factors(fs):          # a reload there is already a fresh JSBSim
+        if not sim.set_factors(fs):          # new propeller tables there: already a fresh JSBSim
             sim.fresh()
         r, lab = self.residuals(fs)
         if self.prior:

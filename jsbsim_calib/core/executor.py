@@ -10,7 +10,7 @@ same function, so a worker loads an aircraft once per fit, not once per task.
 
 The results are the same bits whatever the executor and the number of workers, provided each
 call is a pure function of its item: the fits make it so (every evaluation starts from a
-freshly loaded JSBSim and the trim warm starts of the last accepted point:
+JSBSim in a fresh load's state and the trim warm starts of the last accepted point:
 :mod:`jsbsim_calib.calibration.fit`).
 """
 from __future__ import annotations

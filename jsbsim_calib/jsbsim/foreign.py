@@ -466,6 +466,8 @@ class ForeignSimulator(Simulator):
     be trimmed (``with ForeignSimulator(root, name) as sim: ...``). No calibration factors, no
     effects; ``conventions`` as in the module doc."""
 
+    warm_reset = False       # its systems are not ours: a fresh start loads it anew (Simulator.fresh)
+
     def __init__(self, root: Path | str, name: str, conventions: Conventions = Conventions()):
         self.root = Path(root).resolve()
         self.name = name

@@ -28,10 +28,14 @@ from ..flight.condition import Condition, TrimResult
 from .product import (AircraftPaths, Propeller, check_consistent, load_aircraft_geometry, propeller_bytes,
                       read_bem_csv, recover_product, write_aircraft)
 from .propulsion import read_baked_factors
+from .templates import reset_ic_xml
 from .xml import Tree, copy, parse, read, structure_problems, tostring, tree, write_bytes
 
 INDICATED_SURFACES = ("elevator", "aileron", "rudder")    # fcs/<surface>-ind-deg, where an aircraft defines it
 PROPELLER_CACHE = 64         # baked propeller files kept per simulator (a fit's Jacobian: one per propeller factor)
+KEPT_JSBSIMS = 6             # loaded JSBSims kept per simulator, one per set of propeller factors (about 3 MB each)
+START_SPEED_FPS = 150.0      # [ft/s] true airspeed of the initial conditions after a load (never zero)
+DONT_RUN_IC = 2              # JSBSim's FGFDMExec::DONT_EXECUTE_RUN_IC (reset_to_initial_conditions)
 
 
 class Simulator:
@@ -40,6 +44,12 @@ class Simulator:
     ``factors``: values to start from (default: those declared in the aircraft file);
     ``baseline=True``: all factors neutral (the uncalibrated model).
     """
+
+    warm_reset = True            # fresh() resets a JSBSim that has only trimmed (see fresh)
+    _fdm = None
+    _used = True
+    _trimming = False
+    resets = 0
 
     def __init__(self, root: Path | str, name: str, *, factors: FactorSet | None = None, baseline: bool = False):
         self.root = Path(root).resolve()
@@ -70,7 +80,10 @@ class Simulator:
             self.effect_values: dict[str, float] = effect_property_values(self._tree)
             shutil.copy(self.paths.engine_xml, self._box / "engine")
             self._box_paths = AircraftPaths(self._box, name)
+            self._reset_ic = self._box / "fresh-load.xml"
+            write_bytes(self._reset_ic, reset_ic_xml(START_SPEED_FPS).encode())
             self._propellers: dict[tuple, bytes] = {}
+            self._kept: dict[tuple, jsbsim.FGFDMExec] = {}      # loaded JSBSims by propeller factors
             self._write_sandbox(aircraft=True, propeller=True)
             self._baked = {k: self.factors[k] for k in PROPELLER_FACTORS}
             self.loads = 0
@@ -138,10 +151,42 @@ class Simulator:
         made.__dict__.update(_box=None, _stage=None)      # the sandbox is this one's now
 
     def fresh(self) -> None:
-        """Reload the aircraft from the sandbox (factor and effect values as set): a JSBSim
-        with no history, so that what runs next depends only on the values, not on what ran
-        before (warm starts aside: :attr:`trim_cache`)."""
-        self.fdm = self._load()
+        """A JSBSim with no history (factor and effect values as set), so that what runs next
+        depends only on the values, not on what ran before (warm starts aside:
+        :attr:`trim_cache`): the loaded one reset (:meth:`_reset`: a fresh load's bits) where it
+        has only trimmed since its load or its last reset, else the aircraft loaded anew from the
+        sandbox (the JSBSim was handed out through :attr:`fdm`: what was done with it is not
+        known)."""
+        if self.warm_reset and self._fdm is not None and not self._used:
+            self._reset()
+        else:
+            self.fdm = self._load()
+
+    @property
+    def fdm(self) -> jsbsim.FGFDMExec:
+        """The loaded JSBSim. Handed out here, outside a trim, it may be used for anything: the
+        next :meth:`fresh` loads the aircraft anew instead of resetting it."""
+        if not self._trimming:
+            self._used = True
+        return self._fdm
+
+    @fdm.setter
+    def fdm(self, value) -> None:
+        self._fdm, self._used = value, False
+
+    def distrust(self) -> None:
+        """The JSBSim here may carry a history that a reset does not clear (a failed trim left NaN
+        in its engine): the next :meth:`fresh` loads the aircraft anew."""
+        self._used = True
+
+    def _trimmed(self, solve, cond: Condition, *args) -> TrimResult:
+        """A trim (``solve``: a function of :mod:`jsbsim_calib.jsbsim.trim`), which leaves a JSBSim
+        that :meth:`_reset` brings back to a fresh load's bits."""
+        self._trimming = True
+        try:
+            return solve(self, cond, *args)
+        finally:
+            self._trimming = False
 
     def clone(self) -> "Simulator":
         """A second simulator of the aircraft as it stands here (effects and values included)."""
@@ -164,6 +209,7 @@ class Simulator:
         Propeller tables are baked once per set of propeller factors (kept in memory: a fit's
         Jacobian steps a propeller factor and back many times)."""
         if aircraft:
+            self._kept.clear()                    # JSBSims of the aircraft as it was
             box = copy(self._tree)
             add_trim_aid(box, self.geometry.propeller.location_m)
             write_aircraft(self._box_paths, self.factors, aircraft=box, effect_values=self.effect_values)
@@ -201,21 +247,13 @@ class Simulator:
         fdm = self.new_exec()
         if not fdm.load_model(self.name):
             raise ModelError(f"JSBSim could not load {self.name} from {self._box}")
-        # the values first: what the initialization computes then depends on them only, not on
-        # the values the sandbox file declared when it was written (a fresh load is history-free)
-        for name, f in REGISTRY.items():
-            if not f.baked:
-                fdm[f.property] = self.factors[name]
-        for k, v in self.effect_values.items():
-            fdm[k] = v
-        fdm["ic/terrain-elevation-ft"] = -30000.0     # no ground contact at any trim point
-        fdm["ic/h-sl-ft"] = 5000.0
-        fdm["ic/vt-fps"] = 150.0
-        fdm.run_ic()
-        fdm["propulsion/set-running"] = -1
-        fdm.set_trim_status(True)                     # flaps and actuators reach their command at once
-        self.loads += 1
         pm = fdm.get_property_manager()
+        # what the trims and the loading write, as loaded: a reset sets them back (fresh)
+        self._as_loaded = {n: fdm[n] for n in trim_solver.WRITES + self._loading_properties(fdm) if pm.hasNode(n)}
+        self._dt = fdm.get_delta_t()
+        self._initialize(fdm)
+        self._fdm_key = tuple(self.factors[k] for k in PROPELLER_FACTORS)     # the tables it flies
+        self.loads += 1
         # outputs an aircraft shows as instruments would (effects that change what is measured)
         self.indicated = {f"{s}_deg": f"fcs/{s}-ind-deg" for s in INDICATED_SURFACES if pm.hasNode(f"fcs/{s}-ind-deg")}
         if pm.hasNode(trim_solver.PITCH_INDICATED):
@@ -223,20 +261,63 @@ class Simulator:
         self.has_position_error = pm.hasNode(trim_solver.POSITION_ERROR)
         return fdm
 
+    def _initialize(self, fdm: jsbsim.FGFDMExec) -> None:
+        """What follows a load: the factor and effect values first (what the initialization
+        computes then depends on them only, not on the values the sandbox file declared when it
+        was written: a fresh load is history-free), then initial conditions clear of the ground
+        and the engine running."""
+        for name, f in REGISTRY.items():
+            if not f.baked:
+                fdm[f.property] = self.factors[name]
+        for k, v in self.effect_values.items():
+            fdm[k] = v
+        fdm["ic/terrain-elevation-ft"] = -30000.0     # no ground contact at any trim point
+        fdm["ic/h-sl-ft"] = 5000.0
+        fdm["ic/vt-fps"] = START_SPEED_FPS
+        fdm.run_ic()
+        fdm["propulsion/set-running"] = -1
+        fdm.set_trim_status(True)                     # flaps and actuators reach their command at once
+
+    def _reset(self) -> None:
+        """The loaded JSBSim brought back to a fresh load's bits (about 0.1 ms against a load's
+        7): what the trims wrote set back to its values at the load (the loading counts: the
+        reset's initialization runs with it), the models re-initialized, the initial conditions
+        read from a file that sets them exactly (no round-off wind left), then what follows a
+        load. ``tests/test_executor.py`` checks every property against a fresh load's after
+        trims of every kind, and the main job's test rewrites the product byte for byte."""
+        fdm = self._fdm
+        for n, v in self._as_loaded.items():
+            fdm[n] = v
+        fdm.set_dt(self._dt)                          # as loaded (a trim suspends the integration)
+        fdm.reset_to_initial_conditions(DONT_RUN_IC)
+        fdm.load_ic(str(self._reset_ic), False)
+        self._initialize(fdm)
+        self.resets += 1
+
+    @staticmethod
+    def _loading_properties(fdm: jsbsim.FGFDMExec) -> tuple[str, ...]:
+        """The point masses and tank contents of the loaded aircraft (what set_loading writes)."""
+        names = []
+        for pattern in ("inertia/pointmass-", "/contents-lbs"):
+            names += [line.split()[0] for line in fdm.query_property_catalog(pattern).splitlines()
+                      if line.strip() and line.split()[0].startswith(("inertia/pointmass-", "propulsion/tank"))]
+        return tuple(dict.fromkeys(names))
+
     def nodes(self, names: tuple[str, ...]) -> list:
         """The property nodes of these names in the JSBSim loaded now (kept per load): a value
         set or read through a node is the one ``fdm[name]`` sets or reads, without the lookup
         of the name (a trim's residual sets 14 and reads 6, about 9 us a residual of 70)."""
-        if getattr(self, "_nodes_of", None) is not self.fdm:        # a new load: new nodes
-            self._nodes_of, self._nodes = self.fdm, {}
+        if getattr(self, "_nodes_of", None) is not self._fdm:       # a new load: new nodes
+            self._nodes_of, self._nodes = self._fdm, {}
         got = self._nodes.get(names)
         if got is None:
-            pm = self.fdm.get_property_manager()
+            pm = self._fdm.get_property_manager()
             got = self._nodes[names] = [pm.get_node(n) for n in names]
         return got
 
     def close(self) -> None:
         self.fdm = self._nodes_of = None
+        self._kept = {}
         if self._box is not None:
             shutil.rmtree(self._box, ignore_errors=True)
         if getattr(self, "_stage", None):
@@ -274,7 +355,7 @@ class Simulator:
             if k not in self.effect_values:
                 raise ModelError(f"the aircraft has no effect factor {k}")
             self.effect_values[k] = float(v)
-            self.fdm[k] = float(v)
+            self._fdm[k] = float(v)
 
     def set_moment_of_inertia(self, axis: str, value: float, note: str = "") -> None:
         """Set an empty-aircraft moment of inertia (``ixx``, ``iyy``, ``izz``; slug ft2) and reload."""
@@ -298,9 +379,9 @@ class Simulator:
 
     # ------------------------------------------------------------------ factors and loading
     def set_factors(self, factors: FactorSet) -> bool:
-        """Apply factor values: properties directly, propeller factors by re-baking + reload.
-        Returns True when it reloaded (a fresh JSBSim at these values: :meth:`fresh` needs
-        not run again)."""
+        """Apply factor values: properties directly, propeller factors by the JSBSim of their
+        tables (:meth:`_switch_propeller`). Returns True when it changed the JSBSim (a fresh one
+        at these values: :meth:`fresh` needs not run again)."""
         extra = {f.property: float(factors[n]) for n, f in factors.extra.items()}
         unknown = [k for k in extra if k not in self.effect_values]
         if unknown:
@@ -309,21 +390,39 @@ class Simulator:
         self.factors = factors
         self.effect_values.update(extra)
         if prop_changed:
-            self._write_sandbox(aircraft=False, propeller=True)
             self._baked = {k: factors[k] for k in PROPELLER_FACTORS}
-            self.fdm = self._load()              # the values are set before its initialization
+            self._switch_propeller()
             return True
         for name, f in REGISTRY.items():
             if not f.baked:
-                self.fdm[f.property] = factors[name]
+                self._fdm[f.property] = factors[name]
         for k, v in extra.items():
-            self.fdm[k] = v
+            self._fdm[k] = v
         return False
+
+    def _switch_propeller(self) -> None:
+        """Fly the propeller factors now set: on a JSBSim kept from an earlier switch to them,
+        reset (:meth:`_reset`: a fresh load's bits), or on the aircraft loaded with the tables
+        baked for them. The JSBSim left keeps its tables for the next switch back (a fit's
+        Jacobian steps a propeller factor and back, and a worker takes its columns in any
+        order), unless it was handed out (:attr:`fdm`)."""
+        if self._fdm is not None and not self._used and self.warm_reset:
+            self._kept[self._fdm_key] = self._fdm
+            while len(self._kept) > KEPT_JSBSIMS:
+                self._kept.pop(next(iter(self._kept)))
+        key = tuple(self.factors[k] for k in PROPELLER_FACTORS)
+        kept = self._kept.pop(key, None)
+        if kept is not None:
+            self._fdm, self._used, self._fdm_key = kept, False, key
+            self._reset()
+        else:
+            self._write_sandbox(aircraft=False, propeller=True)
+            self.fdm = self._load()              # the values are set before its initialization
 
     def set_loading(self, weight_lb: float, cg_in: float | None = None, fuel_fraction: float | None = None) -> None:
         """Total weight and CG station through the payload point mass; other stations empty
         (:func:`jsbsim_calib.physics.mass.loading`)."""
-        fdm = self.fdm
+        fdm = self._fdm
         for i in range(1, len(self.geometry.mass.stations) + 1):
             fdm[f"inertia/pointmass-weight-lbs[{i}]"] = 0.0
         load = loading(self.geometry, weight_lb, cg_in, fuel_fraction)
@@ -334,11 +433,11 @@ class Simulator:
 
     # ------------------------------------------------------------------ trims (jsbsim_calib.jsbsim.trim)
     def trim(self, cond: Condition, key=None) -> TrimResult:
-        return trim_solver.trim(self, cond, key)
+        return self._trimmed(trim_solver.trim, cond, key)
 
     def trim_level(self, cond: Condition, key=None, speed_tolerance_kt: float = 3.0,
                    vs_tolerance_fpm: float = 100.0) -> TrimResult:
-        return trim_solver.trim_level(self, cond, key, speed_tolerance_kt, vs_tolerance_fpm)
+        return self._trimmed(trim_solver.trim_level, cond, key, speed_tolerance_kt, vs_tolerance_fpm)
 
     def trim_at_stop(self, cond: Condition, key=None) -> TrimResult:
-        return trim_solver.trim_at_stop(self, cond, key)
+        return self._trimmed(trim_solver.trim_at_stop, cond, key)

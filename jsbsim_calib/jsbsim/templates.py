@@ -11,6 +11,7 @@ CRUISE_ALTITUDE_FT = 5500.0
 CRUISE_KTAS = 110.0
 CRUISE_SCRIPT_RPM_BELOW_MAX = 200.0     # [rpm] governor setting of the cruise script: maximum less this
 CRUISE_SCRIPT_POWER = 0.65               # [-] share of rated power the script's starting blade angle absorbs
+WGS84_SEMIMAJOR_FT = 20925646.32546      # JSBSim's Earth (FGInertial): where a fresh load's position starts
 
 
 def init_xml(geom: AircraftGeometry) -> str:
@@ -27,6 +28,21 @@ def init_xml(geom: AircraftGeometry) -> str:
   <psi unit="DEG"> 90.0 </psi>
   <altitude unit="FT"> 5500.0 </altitude>
   <running> 0 </running>
+</initialize>
+"""
+
+
+def reset_ic_xml(speed_fps: float) -> str:
+    """The initial conditions of a JSBSim just loaded, as a file (format 2) that sets them
+    exactly: on the equator at the prime meridian, level, wings level, heading north, flying
+    ``speed_fps`` along the body axis, no wind. Loaded after a reset, it takes away what the
+    trims left in the initial conditions (a round-off wind of 1e-12 ft/s, which every later
+    setter keeps) and brings back a fresh load's bits (:meth:`Simulator.fresh`)."""
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<initialize name="fresh-load" version="2.0">
+  <position frame="ECEF"> <x unit="FT"> {WGS84_SEMIMAJOR_FT!r} </x> <y unit="FT"> 0.0 </y> <z unit="FT"> 0.0 </z> </position>
+  <orientation unit="RAD" frame="LOCAL"> <roll> 0.0 </roll> <pitch> 0.0 </pitch> <yaw> 0.0 </yaw> </orientation>
+  <velocity unit="FT/SEC" frame="BODY"> <x> {float(speed_fps)!r} </x> <y> 0.0 </y> <z> 0.0 </z> </velocity>
 </initialize>
 """
 

@@ -61,6 +61,11 @@ ACCEL_SCALE = np.array([G_FT, G_FT, G_FT, 1.0, 1.0, 1.0])    # the residual: acc
 STATE = ("ic/phi-rad", "ic/theta-rad", "ic/psi-true-rad", "ic/u-fps", "ic/v-fps", "ic/w-fps",
          "ic/p-rad_sec", "ic/q-rad_sec", "ic/r-rad_sec", "fcs/throttle-cmd-norm", TRIM_AID,
          "fcs/elevator-cmd-norm", "fcs/aileron-cmd-norm", "fcs/rudder-cmd-norm")
+# what a trim writes besides the initial conditions and the loading (Simulator.set_loading): a
+# reset of the JSBSim sets these back to their values at the load (Simulator.fresh)
+WRITES = STATE[9:] + ("atmosphere/delta-T", "fcs/mixture-cmd-norm", "fcs/flap-cmd-norm",
+                      "propulsion/engine/blade-angle", "propulsion/engine/constant-speed-mode",
+                      "fcs/advance-cmd-norm")
 
 
 # --------------------------------------------------------------------------- atmosphere
@@ -348,15 +353,18 @@ def _trim_once(sim, cond: Condition, key=None) -> TrimResult:
     out = _result(problem, x, nfev, mix, T)
     sim.fdm[TRIM_AID] = 0.0
     if not out.trimmed:
-        _recover(sim.fdm)
+        _recover(sim)
     elif key is not None:
         sim.trim_cache[key] = (x.copy(), lu)       # the next warm start: the point and its Jacobian, factored
     return out
 
 
-def _recover(fdm) -> None:
-    """After a failed trim: clear NaN from the engine state before the next point."""
+def _recover(sim) -> None:
+    """After a failed trim: clear NaN from the engine state before the next point (a JSBSim
+    that a reset may not bring back to a fresh load's bits: the next fresh start loads anew)."""
+    fdm = sim.fdm
     if not all(math.isfinite(fdm[p]) for p in ("propulsion/engine/engine-rpm", "propulsion/engine/map-inhg")):
+        sim.distrust()
         fdm.reset_to_initial_conditions(0)
         fdm["propulsion/set-running"] = -1
         fdm.set_trim_status(True)
