@@ -252,7 +252,6 @@ class Simulator:
         self._as_loaded = {n: fdm[n] for n in trim_solver.WRITES + self._loading_properties(fdm) if pm.hasNode(n)}
         self._dt = fdm.get_delta_t()
         self._initialize(fdm)
-        self._fdm_key = tuple(self.factors[k] for k in PROPELLER_FACTORS)     # the tables it flies
         self.loads += 1
         # outputs an aircraft shows as instruments would (effects that change what is measured)
         self.indicated = {f"{s}_deg": f"fcs/{s}-ind-deg" for s in INDICATED_SURFACES if pm.hasNode(f"fcs/{s}-ind-deg")}
@@ -390,7 +389,6 @@ class Simulator:
         self.factors = factors
         self.effect_values.update(extra)
         if prop_changed:
-            self._baked = {k: factors[k] for k in PROPELLER_FACTORS}
             self._switch_propeller()
             return True
         for name, f in REGISTRY.items():
@@ -407,13 +405,13 @@ class Simulator:
         Jacobian steps a propeller factor and back, and a worker takes its columns in any
         order), unless it was handed out (:attr:`fdm`)."""
         if self._fdm is not None and not self._used and self.warm_reset:
-            self._kept[self._fdm_key] = self._fdm
+            self._kept[tuple(self._baked[k] for k in PROPELLER_FACTORS)] = self._fdm     # the tables it flies
             while len(self._kept) > KEPT_JSBSIMS:
                 self._kept.pop(next(iter(self._kept)))
-        key = tuple(self.factors[k] for k in PROPELLER_FACTORS)
-        kept = self._kept.pop(key, None)
+        self._baked = {k: self.factors[k] for k in PROPELLER_FACTORS}
+        kept = self._kept.pop(tuple(self._baked[k] for k in PROPELLER_FACTORS), None)
         if kept is not None:
-            self._fdm, self._used, self._fdm_key = kept, False, key
+            self._fdm, self._used = kept, False
             self._reset()
         else:
             self._write_sandbox(aircraft=False, propeller=True)
