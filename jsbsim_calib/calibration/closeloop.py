@@ -214,6 +214,9 @@ class TrimEvidence:
     def companions(self, ch: Change) -> list[str]:
         return companion_factors(ch.effect) if self.refit_companions and ch.effect is not None else []
 
+    def focused(self, sim: Simulator, part, names) -> "TrimEvidence":
+        return self                  # a trim is cheap: every point is evaluated in every fit
+
     def fit_options(self, what: str) -> dict:
         return {"max_nfev": 20 if what == "candidate" else 30}
 

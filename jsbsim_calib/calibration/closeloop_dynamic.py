@@ -26,7 +26,9 @@ flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.ev
    the term). Each finalist
    (:class:`Change`: an effect or term added, a factor refitted alone, an inertia scaled)
    is fitted alone on all the tests (residuals
-   (model - data)/scale at every recorded sample of every response channel) and score it with
+   (model - data)/scale at every recorded sample of every response channel; the fit flies the
+   tests its factors move and predicts the others to first order, :meth:`TimeHistoryEvidence.focused`)
+   and scored on all of them, flown, with
    the trim loop's rules (:func:`.closeloop.evidence_failures`,
    :func:`.closeloop.pays_off_out_of_sample`): BIC change <= -10 with each channel's residuals
    scaled by its noise, at least 60 % of the structured residual of the channels it moves
@@ -54,6 +56,7 @@ and the cross-validation over whole maneuvers (the tests that decide between eff
 """
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -792,6 +795,37 @@ def projected(x: Response, Q: np.ndarray | None) -> Response:
     return replace(x, scaled=r, model=model)
 
 
+FOCUS_SHARE = 1e-2           # a fit flies the tests that carry all but this share of a factor's sensitivity
+FOCUS_STEP = 0.02            # the step (normalized factor) of the sensitivities that choose them
+
+
+def sensitive(slopes: Sequence[Sequence[np.ndarray | None]]) -> set[int]:
+    """The tests to fly (indices into ``slopes``: per test, a slope per factor, None where a
+    flight failed): those that failed, and for each factor the fewest that carry all but
+    :data:`FOCUS_SHARE` of its squared slopes, largest first."""
+    keep = {j for j, s in enumerate(slopes) if any(c is None for c in s)}
+    for k in range(len(slopes[0]) if slopes else 0):
+        energy = np.array([0.0 if j in keep else float(s[k] @ s[k]) for j, s in enumerate(slopes)])
+        order = np.argsort(-energy, kind="stable")
+        covered = np.cumsum(energy[order]) < (1.0 - FOCUS_SHARE) * energy.sum()
+        keep |= {int(order[j]) for j in range(len(order)) if j == 0 or covered[j - 1]}
+    return keep
+
+
+@dataclass(frozen=True)
+class Linearized:
+    """A test's projected response about a fit's start, to first order in the fit's factors."""
+
+    at: Response
+    names: tuple[str, ...]
+    start: np.ndarray            # the factors' values at the start
+    slopes: np.ndarray           # d scaled residual / d value, a column per factor
+
+    def response(self, factors: FactorSet) -> Response:
+        dx = np.array([factors[n] for n in self.names]) - self.start
+        return replace(self.at, scaled=self.at.scaled + self.slopes @ dx)
+
+
 class TimeHistoryEvidence:
     """Recorded maneuvers as evidence for the loop (:mod:`.loop`): a row per response channel
     and recorded sample, (model - data)/scale; every maneuver fitted, cross-validation over
@@ -806,14 +840,15 @@ class TimeHistoryEvidence:
         self.bases = list(bases) if bases is not None else [None] * len(self.tests)   # offset_bases()
         self.screens: list[Screen] = []
         self._terms: list[Change] = []
+        self.linear: dict[int, Linearized] = {}         # tests predicted, not flown (focused())
 
     def __getstate__(self) -> dict:
         """Pickled (a task's copy): the evidence without its executor (a task runs its own work here)."""
         return {**self.__dict__, "executor": SERIAL}
 
     def rows(self, sim: Simulator, part) -> Rows:
-        flown = fly_all(sim, [self.tests[i] for i in part])
-        r, v, ch = _stack([self._projected(i, x) for i, x in zip(part, flown)])
+        flown = self._flown(sim, part)
+        r, v, ch = _stack(flown)
         B = self._bias_columns(part, flown)
         r = r - B @ np.linalg.lstsq(B, r, rcond=None)[0] if B.size else r
         labels = [f"{self.tests[i].id} {c} t={s:.2f}" for i in part for c in response_channels(self.tests[i])
@@ -822,6 +857,51 @@ class TimeHistoryEvidence:
 
     def _projected(self, i: int, x: Response) -> Response:
         return projected(x, self.bases[i])
+
+    def _flown(self, sim: Simulator, part) -> list[Response]:
+        """The tests of ``part`` on the model as ``sim`` stands, projected: flown, or predicted
+        to first order where :meth:`focused` linearized them."""
+        flights = iter(fly_all(sim, [self.tests[i] for i in part if i not in self.linear]))
+        return [self.linear[i].response(sim.factors) if i in self.linear else self._projected(i, next(flights))
+                for i in part]
+
+    def focused(self, sim: Simulator, part, names: Sequence[str]) -> "TimeHistoryEvidence":
+        """A copy for a fit of ``names`` from the factors ``sim`` holds: it flies only the tests
+        of ``part`` that carry all but :data:`FOCUS_SHARE` of some factor's sensitivity (its
+        squared residual slopes) and predicts the others to first order about the start, from
+        their flights there and one step away (k + 1 flights of the part). A pitch factor
+        leaves the lateral maneuvers and the trims in a line: a fit of K_Cmq on the Level 5
+        campaign flies 4 of its 20 tests. The caller's trim warm starts and factors are kept."""
+        names = list(names)
+        if not names or len(part) < 2:
+            return self
+        start, warm = sim.factors, dict(sim.trim_cache)
+        x0 = start.vector(names)
+
+        def flown_at(x: np.ndarray) -> list[Response]:
+            sim.trim_cache = dict(warm)
+            if not sim.set_factors(start.with_vector(names, x)):
+                sim.fresh()
+            return self._flown(sim, part)
+
+        at = flown_at(x0)
+        slopes = [[] for _ in part]
+        for k in range(len(names)):
+            x = np.array(x0, float)
+            x[k] += FOCUS_STEP if x0[k] + FOCUS_STEP <= 1.0 else -FOCUS_STEP
+            moved = flown_at(x)
+            dv = start.with_vector(names, x)[names[k]] - start[names[k]]
+            for j, (a, b) in enumerate(zip(at, moved)):
+                slopes[j].append(None if a.model is None or b.model is None else (b.scaled - a.scaled) / dv)
+        sim.trim_cache = warm                                  # the caller's model and warm starts again
+        if not sim.set_factors(start):
+            sim.fresh()
+        keep = sensitive(slopes)
+        out = copy.copy(self)
+        out.linear = {**self.linear, **{i: Linearized(at[j], tuple(names), start.vector(names, normalized=False),
+                                                       np.column_stack(slopes[j]))
+                                        for j, i in enumerate(part) if j not in keep}}
+        return out
 
     def _bias_columns(self, part, flown: Sequence[Response]) -> np.ndarray:
         """A column per response channel: what a constant sensor bias of one scale does to the

@@ -116,6 +116,7 @@ class Evidence(Protocol):
     executor: Executor                                               # where candidates and folds run
 
     def rows(self, sim: Simulator, part: Sequence[int]) -> Rows: ...
+    def focused(self, sim: Simulator, part: Sequence[int], names: Sequence[str]) -> "Evidence": ...  # for a fit of names
     def diagnose(self, sim: Simulator) -> Mapping[str, Diagnosis]: ...
     def noise(self, d: Diagnosis) -> float: ...                      # in tolerance units
     def independent_share(self, d: Diagnosis) -> float: ...
@@ -260,7 +261,8 @@ def _fit_effect(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet
         opts = fit_options(ev, "candidate")
         if "prior_center" in opts:
             opts = {**opts, "prior_center": neutral}
-        fr = fit(f"candidate {ch.name}", list(extra), start, _residuals(ev, trial, part), sim=trial, **opts)
+        fr = fit(f"candidate {ch.name}", list(extra), start, _residuals(ev.focused(trial, part, list(extra)), trial, part),
+                 sim=trial, **opts)
         trial.set_factors(fr.final)
     except BaseException:
         trial.close()
@@ -295,8 +297,9 @@ def _fit_factor(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet
         f = factors.factor(ch.target)
         start = factors.updated({ch.target: _inside(f, factors[ch.target] + dict(ch.start).get(ch.target, 0.0))})
         opts = {k: v for k, v in fit_options(ev, "candidate").items() if k != "prior_center"}
-        fr = fit(f"candidate {ch.name}", [ch.target], start, _residuals(ev, trial, part), sim=trial,
-                 **{**opts, "prior": 0.0})
+        trial.set_factors(start)
+        fr = fit(f"candidate {ch.name}", [ch.target], start, _residuals(ev.focused(trial, part, [ch.target]), trial, part),
+                 sim=trial, **{**opts, "prior": 0.0})
         trial.set_factors(fr.final)
     except BaseException:
         trial.close()
