@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,7 @@ from scipy.optimize import least_squares
 from jsbsim_calib.calibration.dynamic import AMPLITUDE_RANGE
 from jsbsim_calib.calibration.synthesis import Term, term_effect
 from jsbsim_calib.calibration.workflow import dynamic_tests, load_data_for
+from jsbsim_calib.data.dynamic_tests import ROLL_STEP_FRACTION
 from jsbsim_calib.evaluation.evaluate import evaluate_dataset
 from jsbsim_calib.evaluation.evaluate_dynamic import fly_test
 from jsbsim_calib.jsbsim.probes import trim_derivatives
@@ -64,6 +66,10 @@ def main() -> None:
         print(f"flight test: {', '.join(f'{k} {v:+.1f}' for k, v in target.items())} deg/s")
         print(f"product (K_Clp {base.factors['K_Clp']:.4g}): {', '.join(f'{k} {v:+.1f}' for k, v in r0.items())} "
               f"deg/s; trims' aileron RMSE {a0[0]:.2f} deg, {a0[1]:.0f} % within +-1 deg")
+        for i in STEPS:
+            frac = step_meeting(base, tests[i], target[i])
+            print(f"{i}: the product meets {target[i]:+.1f} deg/s with a wheel step of {frac:.3f} of the travel "
+                  f"(assumed {ROLL_STEP_FRACTION:.3f}: 'about one-third'); the thesis flew the recorded wheel")
         for t in tests.values():
             d, c = trim_derivatives(base, t.maneuver.start), t.maneuver.start
             print(f"{t.id}: {d.ktas:.0f} KTAS, flaps {c.flaps_deg:g}, alpha {d.alpha_deg:.1f} deg, "
@@ -72,6 +78,25 @@ def main() -> None:
               f"{'aileron trims':>15}  what K means at C.58 / C.60")
         for regressor, meaning in CANDIDATES:
             print(trace(base, regressor, meaning, tests, target, ds))
+
+
+def step_meeting(sim: Simulator, test, measured: float) -> float:
+    """The wheel step, as a share of the travel, at which the model's steady roll rate is the
+    flight test's (secant iterations on the step's size; the rate is nearly proportional)."""
+    inp = test.maneuver.inputs[0]
+
+    def rate(scale: float) -> float:
+        m = replace(test.maneuver, inputs=(replace(inp, value=tuple(v * scale for v in inp.value)),))
+        return rates(sim, [replace(test, maneuver=m)])[test.id] - measured
+
+    a, fa = 1.0, rate(1.0)
+    b = measured / (fa + measured)
+    for _ in range(6):
+        fb = rate(b)
+        if abs(fb) < 0.01 or fb == fa:
+            break
+        a, b, fa = b, b - fb * (b - a) / (fb - fa), fb
+    return b * ROLL_STEP_FRACTION
 
 
 def trace(base: Simulator, regressor: str, meaning: str, tests, target, ds) -> str:
