@@ -3,12 +3,15 @@ effects issue 24 names: can one physical term, fitted with the roll damping, mee
 
     python benchmarks/roll_trace.py
 
+First the wheel step at which the product itself meets each steady rate (the step's size was
+not recorded; the thesis flew the recorded wheel).
+
 For each candidate term of the close-loop's dictionary (``Delta Cl = K x regressor``, the
 same XML the loop would add), K and K_Clp are solved so that both steady roll rates meet the
 flight test (two rates, two unknowns); the script prints K, K_Clp, both rates, what the term
 does to the aileron or damping at each test's condition (the physical check), and what it does
 to the roll pulses C.25 / C.27 and to the 20 flight-test trims' aileron. Real JSBSim, the
-committed C172; about a minute.
+committed C172; about 15 s.
 """
 from __future__ import annotations
 
