@@ -25,6 +25,9 @@ from jsbsim_calib.calibration.loop import write_aircraft
 from jsbsim_calib.data.load import load_dataset
 from jsbsim_calib.calibration.effects import library
 from jsbsim_calib.flight.condition import Condition
+from jsbsim_calib.core.errors import ModelError
+from jsbsim_calib.factors import REGISTRY
+from jsbsim_calib.jsbsim.aircraft import add_effect, added_xml, effect_constants, moment_of_inertia, set_moment_of_inertia
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.data.flighttest import QuirkWarning
 from jsbsim_calib.synthetic.snapshots import synthesize, write_csv
@@ -132,6 +135,28 @@ def test_an_undeclared_library_effect_is_found_first_and_closes_the_residual(tmp
     assert any(before[m].within_pct < 100.0 or before[m].rmse > 0.3 for m in affected if m in before)
     assert all(v == 100.0 for v in _within(res).values()), _within(res)
     assert not res.unexplained()
+
+
+def test_the_report_quotes_the_xml_each_change_wrote(clean):
+    """A loop's report shows what each change wrote into the aircraft: an effect's system and
+    the functions it joined to an aerodynamic axis (named), a refitted factor's declaration, a
+    scaled inertia with its note; every quoted element is XML, and a change the aircraft does
+    not hold is an error, not an empty block."""
+    tree = clean.aircraft_tree()
+    effect = library()["p_factor"]
+    add_effect(tree, effect, effect_constants(clean.geometry), {effect.factors[0].property: 2.5})
+    set_moment_of_inertia(tree, "iyy", 1.5 * moment_of_inertia(tree, "iyy"), "close-loop: iyy x 1.5 (fitted to the data)")
+    text = added_xml(tree, "p_factor")
+    assert 'name="effect: p_factor"' in text and 'value="2.5"' in text
+    assert '<axis name="YAW">' in text and 'name="aero/effects/p_factor-lbsft"' in text
+    factor = added_xml(tree, "factor K_Cmq")
+    assert factor.startswith("<property") and REGISTRY["K_Cmq"].property in factor
+    inertia = added_xml(tree, "inertia iyy")
+    assert "close-loop: iyy x 1.5" in inertia and "<iyy unit=" in inertia
+    for quoted in (text, factor, inertia):
+        etree.fromstring(f"<quoted>{quoted}</quoted>")
+    with pytest.raises(ModelError, match="slipstream_tail"):
+        added_xml(tree, "slipstream_tail")
 
 
 @pytest.mark.slow

@@ -28,8 +28,8 @@ from ..core.units import FT, LB_PER_GAL_AVGAS, LBF, LBM, SLUG, US_GAL
 from . import equations
 from .equations import AILERON, ELEVATOR, FLAP, M2_TO_FT2, RUDDER
 from .pilot import OUTPUTS as PILOT_OUTPUTS, pilot_system, throttle_channel
-from .xml import (FACTOR_DIGITS, Tree, comment, copy, element, fmt, function, location, operation, parse, prop, read,
-                  sub, table, tostring, tree, value)
+from .xml import (FACTOR_DIGITS, Tree, comment, copy, element, element_text, fmt, function, is_comment, location,
+                  operation, parse, prop, read, sub, table, tostring, tree, value)
 
 
 # --------------------------------------------------------------------------- writing
@@ -424,6 +424,36 @@ def add_effect(aircraft: Tree, effect, constants: Mapping[str, float],
             comment(target, f"effect '{name}'")
             for fn in axis:
                 target.append(fn)
+
+
+def added_xml(aircraft: Tree, change: str) -> str:
+    """What a close-the-loop change wrote into a parsed aircraft, as XML text: an effect's
+    ``<system name="effect: NAME">`` and the functions it joined to ``<aerodynamics>`` ("NAME");
+    a calibration factor's declaration ("factor K_X"); a moment of inertia with its note
+    ("inertia iyy")."""
+    root = aircraft.getroot()
+    kind, _, what = change.partition(" ")
+    if kind == "factor" and what in REGISTRY:
+        out = [p for s in root.findall("system") for p in s.findall("property")
+               if (p.text or "").strip() == REGISTRY[what].property]
+    elif kind == "inertia" and what in INERTIA_TAGS:
+        el = root.find(f"mass_balance/{what}")
+        out = [n for n in el.getparent() if is_comment(n) and "close-loop" in (n.text or "")][-1:] + [el]
+    else:
+        out = [s for s in root.findall("system") if s.get("name") == EFFECT_SYSTEM_PREFIX + change]
+        for axis in root.findall("aerodynamics/axis"):
+            mine, joined = False, []
+            for node in axis:
+                if is_comment(node):
+                    mine = (node.text or "").strip() == f"effect '{change}'"
+                elif mine:
+                    joined.append(node)
+            if joined:
+                out.append(f'<!-- in <aerodynamics><axis name="{axis.get("name")}"> -->')
+                out += joined
+    if not out:
+        raise ModelError(f"the aircraft has no change '{change}' of the loop")
+    return "\n".join(n if isinstance(n, str) else element_text(n) for n in out)
 
 
 def effect_values(aircraft: Tree) -> dict[str, dict[str, float]]:

@@ -181,6 +181,14 @@ def tostring(tree: Tree, indent: bool = True) -> bytes:
     return data if data.endswith(b"\n") else data + b"\n"
 
 
+def element_text(el) -> str:
+    """An element (or comment) as XML text, two-space indented, without what follows it."""
+    el = deepcopy(el) if not is_comment(el) else el
+    if not is_comment(el):
+        etree.indent(el, space="  ")
+    return etree.tostring(el, encoding=str, with_tail=False)
+
+
 def write_bytes(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` atomically; a file that holds them already is left alone."""
     path = Path(path)

@@ -17,6 +17,7 @@ from ..calibration.closeloop_dynamic import CloseLoopDynamicResult, structured_a
 from ..data.timehistory import CHANNELS
 from ..evaluation.evaluate_dynamic import AXIS_CHANNELS, CHANNEL_SCALES
 from . import plots
+from .markdown import added_xml_section
 
 REPORT = "close-loop-dynamic"
 LABELS = {"p_deg_s": "roll rate", "q_deg_s": "pitch rate", "r_deg_s": "yaw rate", "roll_deg": "bank",
@@ -200,6 +201,7 @@ def write_close_loop_dynamic_report(result: CloseLoopDynamicResult, out_dir: Pat
                                   ["No candidate: no axis is structured.", ""])
     if result.refits:
         L += ["## Refits after each added effect", "", "```"] + [r.report() + "\n" for r in result.refits] + ["```", ""]
+    L += added_xml_section(result)
     L += ["## Error before and after (all tests, every recorded sample)", ""] + _error_table(result)
     L += ["## Diagnosis after", ""] + _diagnosis_table(result.diagnosis_after)
     un = result.unexplained()

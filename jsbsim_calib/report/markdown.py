@@ -14,6 +14,7 @@ from ..calibration.bands import Bands, holds
 from ..calibration.workflow import DynamicCalibration, SteadyCalibration, TrimsCalibration
 from ..data.schemas import METRICS
 from ..factors import REGISTRY
+from ..jsbsim.aircraft import added_xml
 from . import plots
 from .identifiability import identifiability_section
 from .synthesis_section import synthesis_section
@@ -288,6 +289,17 @@ def _diag_table(diag: dict) -> list[str]:
     return L + [""]
 
 
+def added_xml_section(result) -> list[str]:
+    """Markdown: the XML each change of a loop result wrote into the aircraft (its
+    ``aircraft_tree``), in the order they were added; nothing when none was."""
+    if not result.added:
+        return []
+    L = ["## XML added to the aircraft", ""]
+    for name in result.added:
+        L += [f"`{name}`:", "", "```xml", added_xml(result.aircraft_tree, name), "```", ""]
+    return L
+
+
 def write_close_loop_report(result, out_dir: Path, written: Path | None = None) -> Path:
     """reports/<aircraft>/close-loop.md: diagnosis, candidates, fits, error before and after."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -326,6 +338,7 @@ def write_close_loop_report(result, out_dir: Path, written: Path | None = None) 
     L += synthesis_section(result)
     if result.refits:
         L += ["## Refits after each added effect", "", "```"] + [r.report() + "\n" for r in result.refits] + ["```", ""]
+    L += added_xml_section(result)
     L += ["## Error before and after", ""]
     for which, title in (("all", "all points"), ("fit", "fitted points"), ("held", "held-out points")):
         s = result.summaries(which)
