@@ -380,6 +380,10 @@ def test_cli_writes_the_aircraft_report_and_json(tmp_path, cn_p_records):
     assert doc["before"]["yaw"]["r_deg_s"]["rms"] > doc["after"]["yaw"]["r_deg_s"]["rms"]
     report = tmp_path / "reports" / "c172" / "close-loop-dynamic.md"
     assert report.is_file() and list(report.parent.glob("close-loop-dynamic_*_yaw.png"))
+    text = report.read_text()          # the layout of every loop report: the XML added, the residual's regressor
+    assert '<system name="effect: yaw_due_to_roll_rate">' in text and '<axis name="YAW">' in text
+    assert "![close-loop-dynamic_round1_yaw_due_to_roll_rate.png]" in text
+    assert (report.parent / "close-loop-dynamic_round1_yaw_due_to_roll_rate.png").stat().st_size > 10_000
     written = root / "aircraft" / "c172_loop" / "c172_loop.xml"
     tree = xml.read(written)
     assert any(s.get("name") == EFFECT_SYSTEM_PREFIX + "yaw_due_to_roll_rate" for s in tree.getroot().findall("system"))

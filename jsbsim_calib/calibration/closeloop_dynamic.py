@@ -78,8 +78,8 @@ from ..jsbsim.trajectory import fly
 from ..jsbsim.xml import Tree, parse
 from .diagnose import ALPHA, Correlate
 from .effects import LIBRARY_DIR, Effect, library
-from .equation_error import Column, Ranked, effect_columns, equation_error, factor_columns, inertia_columns, rank, \
-    term_columns
+from .equation_error import Column, Ranked, effect_columns, equation_error, explained_rows, factor_columns, \
+    inertia_columns, rank, term_columns
 from .fit import FitResult
 from .loop import (MATERIAL, MAX_EFFECTS, LoopResult, NOISE_FLOOR, RULES as LOOP_RULES, Candidate, Change, Round, Rows,
                    cross_validate as loop_cross_validate, run_loop)
@@ -481,6 +481,9 @@ class Screen:
     finalists: list[str]
     wall_time_s: float
     promoted: bool = False       # a single term explains more than every named candidate: flown with them
+    explains: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
+    # per finalist: what its linearized columns predict of the axis's weighted equation error, and
+    # that error (equation_error.explained_rows); the report's residual-against-regressor plot
 
     def as_dict(self) -> dict:
         return {"round": self.round, "axes": list(self.axes), "rows": self.rows,
@@ -505,6 +508,7 @@ def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests,
     ranked = rank(lin)
     named = [r for r in ranked if r.kind != "term"][:FINALISTS]
     changes = [_named_change(r, effects) for r in named]
+    explains = {c.name: explained_rows(lin, r.columns, r.estimate) for c, r in zip(changes, named)}
     top = _top_term(ranked, lin)
     if top is not None:
         changes.append(_synthesized_change(top, lin, tests, changes))
@@ -513,8 +517,11 @@ def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests,
     chosen = _synthesized_change(sel, lin, tests, first) if sel is not None and sel.terms else None
     if chosen is not None and chosen.name not in {c.name for c in first}:
         (then if chosen.kind == "term" else first).append(chosen)     # a selected factor's form: that factor, named
+    for pick, c in ((top, changes[-1] if top is not None else None), (sel, chosen)):
+        if pick is not None and c is not None and c.name not in explains:
+            explains[c.name] = explained_rows(_terms_only(lin), [t.name for t in pick.terms], pick.coefficients)
     return Screen(rnd, tuple(axes), int(lin.residual.size), ranked, sel, [c.name for c in first + then],
-                  time.perf_counter() - t0, top is not None), first, then
+                  time.perf_counter() - t0, top is not None, explains), first, then
 
 
 def _top_term(ranked: Sequence[Ranked], lin: Linearization) -> Selection | None:
@@ -843,8 +850,9 @@ class TimeHistoryEvidence:
         self.linear: dict[int, Linearized] = {}         # tests predicted, not flown (focused())
 
     def __getstate__(self) -> dict:
-        """Pickled (a task's copy): the evidence without its executor (a task runs its own work here)."""
-        return {**self.__dict__, "executor": SERIAL}
+        """Pickled (a task's copy): the evidence without its executor (a task runs its own work here)
+        and without the screens' records (the report's, not a task's)."""
+        return {**self.__dict__, "executor": SERIAL, "screens": []}
 
     def rows(self, sim: Simulator, part) -> Rows:
         flown = self._flown(sim, part)

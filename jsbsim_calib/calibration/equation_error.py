@@ -367,6 +367,17 @@ def _weighted(lin: Linearization) -> tuple[np.ndarray, np.ndarray]:
     return lin.sensitivity * lin.weight[:, None], -lin.residual * lin.weight
 
 
+def explained_rows(lin: Linearization, columns: Sequence[str], coefficients: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """The rows some columns move (by their term names): what the columns at these
+    coefficients predict of the weighted residual (x) and the weighted residual, data less
+    model (y). Columns that explain the residual put the points on y = x."""
+    names = [t.name for t in lin.terms]
+    A, y = _weighted(lin)
+    X = A[:, [names.index(c) for c in columns]]
+    rows = np.any(np.abs(X) > 0, axis=1)
+    return np.array([numerics.dot(row, np.asarray(coefficients, float)) for row in X[rows]]), y[rows]
+
+
 def rank(lin: Linearization) -> list[Ranked]:
     """Every target's columns fitted alone (least squares on the weighted rows): the chi-square
     each explains, strongest first (ties: the order of the columns)."""
