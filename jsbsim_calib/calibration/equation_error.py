@@ -375,7 +375,7 @@ def explained_rows(lin: Linearization, columns: Sequence[str], coefficients: Seq
     A, y = _weighted(lin)
     X = A[:, [names.index(c) for c in columns]]
     rows = np.any(np.abs(X) > 0, axis=1)
-    return np.array([numerics.dot(row, np.asarray(coefficients, float)) for row in X[rows]]), y[rows]
+    return numerics.matvec(X[rows], np.asarray(coefficients, float)), y[rows]
 
 
 def rank(lin: Linearization) -> list[Ranked]:

@@ -183,8 +183,8 @@ def tostring(tree: Tree, indent: bool = True) -> bytes:
 
 def element_text(el) -> str:
     """An element (or comment) as XML text, two-space indented, without what follows it."""
-    el = deepcopy(el) if not is_comment(el) else el
     if not is_comment(el):
+        el = deepcopy(el)
         etree.indent(el, space="  ")
     return etree.tostring(el, encoding=str, with_tail=False)
 
