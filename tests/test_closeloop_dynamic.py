@@ -256,7 +256,7 @@ def test_an_undeclared_effect_outside_the_library_is_named_and_recovered(clean, 
         else res.factors[f"{added}.{label}"]
     assert got == pytest.approx(value, rel=0.25)
     if held:
-        assert res.screens[0].promoted and f"factor {held}" in res.screens[0].finalists
+        assert res.screens[0].top_term and f"factor {held}" in res.screens[0].finalists
         assert res.factors[held] == clean.factors[held]
     axis = next(a for a, chans in res.errors("before").items() if channel in chans)
     b, a = res.errors("before")[axis][channel], res.errors("after")[axis][channel]

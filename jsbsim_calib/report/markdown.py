@@ -316,9 +316,10 @@ def write_close_loop_report(result, out_dir: Path, written: Path | None = None) 
          + " ".join(result.notes), "",
          "Method (`jsbsim_calib.closeloop`): residuals are diagnosed against tolerance and an estimate of the "
          "data noise; every library effect the model lacks is added to a copy of the aircraft and its factor "
-         "fitted alone on 3/4 of the points; the best by the Bayesian information criterion is added only with "
-         "very strong evidence (BIC change <= -10), a material effect, at least 60 % of the structured residual "
-         "explained and a 10 % gain in 4-fold cross-validation; then it is refitted with the calibration factors "
+         "fitted alone on 3/4 of the points; it passes with very strong evidence (a change of the Bayesian "
+         "information criterion <= -10), a material effect, at least 60 % of the structured residual explained "
+         "and a 10 % gain in 4-fold cross-validation, and of those that pass the one that predicts best out of "
+         "sample (the lowest cross-validated residuals) is added; then it is refitted with the calibration factors "
          "of the same metrics. Repeat until nothing passes. Every 4th point is held out from the fits.", "",
          f"**Added:** {', '.join(result.added) if result.added else 'nothing'}"
          + (f"; written to `{written}`." if written else "."), "",
