@@ -14,9 +14,9 @@ none passes. Each is fitted alone on the evidence's fitted part and scored again
 round's start (:func:`score`): the change of the Bayesian information criterion with each
 metric's residuals scaled by its noise and counted by its independent samples, the share of
 the structured residual it explains in the metrics it moves (net of what it spoils), and
-how far it moves a prediction. Each that passes is cross-validated (folds of the evidence:
-points, or whole maneuvers): it pays off out of sample or is refused, and of those that pay
-off the one with the lowest held-out residual is added (:func:`best_out_of_sample`). The test a
+how far it moves a prediction. Those that pass are cross-validated (folds of the evidence:
+points, or whole maneuvers) in the order of the residual they leave, and the first that pays
+off out of sample is added (:func:`best_out_of_sample`). The test a
 candidate failed is its reason. Every test is written as what passing requires, so a NaN
 fails it.
 """
@@ -475,27 +475,26 @@ def cross_validate(ev: Evidence, current: Simulator, ch: Change, factors: Factor
 
 def best_out_of_sample(ev: Evidence, tried: list[Candidate], current: Simulator, changes: Mapping[str, Change],
                        factors: FactorSet, say, ahead: Mapping[str, float] | None = None) -> Candidate | None:
-    """Of the candidates that passed the fit tests, the one that predicts best out of sample: the
-    lowest cross-validated residual sum, where it gains :data:`MIN_HELD_GAIN` on the model's
-    (``ahead``: sums already computed, by name: :func:`try_changes`). A stand-in that fits many
-    rows a little can carry more likelihood than the change that removes the structure (a library
-    effect at its bound against the truth's term: BIC -13,926 explaining 70 %, against -3,957
-    explaining 89 %); the held-out folds judge both on what neither saw. Ties keep the order of
-    the evidence (the BIC change)."""
-    passing = sorted((c for c in tried if not c.reason), key=lambda c: c.delta_bic)
-    if not passing:
-        return None
+    """Of the candidates that passed the fit tests, the one that leaves the least residual (the
+    most explained) and pays off in cross-validation; ties keep the order of the BIC change
+    (``ahead``: sums already computed, by name: :func:`try_changes`). The BIC change weighs each
+    channel by its noise, and a stand-in that moves many quiet rows a little can carry more of it
+    than the change that removes the structure: a library effect at its bound against the truth's
+    term, BIC -13,926 explaining 70 % against -3,957 explaining 89 %; cross-validated 1.46e4
+    against 1.08e4, the model 1.80e4."""
     everything = sorted({i for _, test in ev.folds() for i in test})
-    cv0 = ev.rows(current, everything).rss()          # the model's: the same for each
-    for c in passing:
+    cv0 = None
+    for c in sorted((c for c in tried if not c.reason), key=lambda c: (c.rss_fit[1], c.delta_bic)):
+        cv0 = ev.rows(current, everything).rss() if cv0 is None else cv0     # the model's: the same for each
         cv1 = (ahead or {}).get(c.effect)
-        c.cv = (cv0, ev.cross_validate(current, changes[c.effect], factors) if cv1 is None else cv1)
-        if not pays_off_out_of_sample(*c.cv):
-            c.reason = (f"does not pay off out of sample: cross-validated residuals {cv0:.3g} -> {c.cv[1]:.3g} "
-                        f"(needs -{100 * MIN_HELD_GAIN:.0f} %)")
-            say(f"round {c.round}: {c.effect}: {c.reason}")
-    paying = [c for c in passing if not c.reason]
-    return min(paying, key=lambda c: c.cv[1]) if paying else None
+        cv1 = ev.cross_validate(current, changes[c.effect], factors) if cv1 is None else cv1
+        c.cv = (cv0, cv1)
+        if pays_off_out_of_sample(cv0, cv1):
+            return c
+        c.reason = (f"does not pay off out of sample: cross-validated residuals {cv0:.3g} -> {cv1:.3g} "
+                    f"(needs -{100 * MIN_HELD_GAIN:.0f} %)")
+        say(f"round {c.round}: {c.effect}: {c.reason}")
+    return None
 
 
 def add(current: Simulator, ch: Change, factors: FactorSet, cand: Candidate) -> tuple[Simulator, FactorSet]:
@@ -572,12 +571,11 @@ def _round(ev: Evidence, rnd: int, current: Simulator, factors: FactorSet, diag,
         best = best_out_of_sample(ev, more, current, by_name, factors, say)
     if best is not None:
         best.accepted = True
-        best.reason = (f"accepted: predicts best out of sample, {best.cv[0]:.3g} -> {best.cv[1]:.3g} "
-                       f"({len(ev.folds())}-fold cross-validation)")
+        best.reason = (f"accepted: explains the most of those that pass; out of sample {best.cv[0]:.3g} -> "
+                       f"{best.cv[1]:.3g} ({len(ev.folds())}-fold cross-validation)")
         for c in tried:
             if not c.reason:
-                c.reason = (f"passes the fit tests; out of sample {c.cv[0]:.3g} -> {c.cv[1]:.3g}, "
-                            f"{best.effect} {best.cv[1]:.3g}")
+                c.reason = f"passes the fit tests; explains less than {best.effect} ({100 * best.share:.0f} %)"
     return tried, best, by_name
 
 
