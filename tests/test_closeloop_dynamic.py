@@ -22,12 +22,12 @@ import numpy as np
 import pytest
 from lxml import etree
 
-from jsbsim_calib.calibration.loop import MIN_EVIDENCE, MIN_EXPLAINED, Change, evidence_failures, \
+from jsbsim_calib.calibration.loop import MATERIAL, MIN_EVIDENCE, MIN_EXPLAINED, Change, evidence_failures, \
     pays_off_out_of_sample
 from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, TimeHistoryEvidence, acts_on,
                                                         close_loop_dynamic, check_tests, companion_factors,
                                                         cross_validate, diagnose_responses, dynamic_library,
-                                                        effect_axis, fly_all, noise_in_scales, projected)
+                                                        effect_axis, excites, fly_all, noise_in_scales, projected)
 from jsbsim_calib.data.flighttest import load_control_travel
 from jsbsim_calib.evaluation.evaluate_dynamic import CHANNEL_SCALES, FAIL_RESIDUAL, load_recorded_tests
 from jsbsim_calib.core.errors import InputError
@@ -293,6 +293,27 @@ def test_b_the_model_flying_its_own_level5_campaign_adds_nothing(clean, tmp_path
     offsets = [abs(v) for o in res.input_offsets.values() for v in o.values()]
     assert offsets and max(offsets) <= 3 * 0.15           # the plan's surfaces: 0.1 deg noise per sample
     assert max(offsets) > 0.05                            # measured: 0.37 deg (S.18, elevator)
+
+
+@pytest.mark.slow
+def test_a_body_rate_is_judged_over_the_tests_that_move_its_axis(clean, tmp_path):
+    """Cl += -4e-5 aileron x qbar flown on the packaged Level 5 plan: over every test the roll
+    rate's residual beyond noise stays under the materiality line (the steady tests dilute it:
+    0.235 of its scale, measured), over the two tests that move the ailerons it is well past it
+    (1.14): the channel is structured and says over which tests. Before the rule nothing was
+    structured and the loop added nothing."""
+    truth = truth_copy(REPO / "aircraft" / "c172", tmp_path / "truth" / "c172",
+                       [UndeclaredTerm("ROLL", -4e-5, "aileron x qbar")], root=REPO)
+    with Simulator.from_dir(truth, REPO) as t:
+        synthesize_maneuvers(t, load_plan("level5"), tmp_path / "l5", seed=1)
+    tests = load_recorded_tests(tmp_path / "l5", load_control_travel(clean.geometry.control_travel_file))
+    assert [t.id for t in tests if excites(t, "roll")] == ["S.08", "S.10"]
+    with clean.clone() as sim:
+        res = close_loop_dynamic(sim, tests, max_effects=0)
+    p = res.diagnosis_before["p_deg_s"]
+    assert p.beyond < MATERIAL * p.scale
+    assert p.structured and p.reason.endswith("over the tests that move its axis (S.08, S.10)"), p.reason
+    assert not res.diagnosis_before["roll_deg"].structured     # an attitude is judged over every test only
 
 
 def test_a_sensor_bias_is_a_nuisance_not_structure(clean, tmp_path):
