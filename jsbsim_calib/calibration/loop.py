@@ -15,8 +15,8 @@ round's start (:func:`score`): the change of the Bayesian information criterion 
 metric's residuals scaled by its noise and counted by its independent samples, the share of
 the structured residual it explains in the metrics it moves (net of what it spoils), and
 how far it moves a prediction. Those that pass are cross-validated (folds of the evidence:
-points, or whole maneuvers) in the order of the residual they leave, and the first that pays
-off out of sample is added (:func:`best_out_of_sample`). The test a
+points, or whole maneuvers) in the order of the share they explain (a synthesized term
+:data:`TERM_MARGIN` less), and the first that pays off out of sample is added (:func:`best_out_of_sample`). The test a
 candidate failed is its reason. Every test is written as what passing requires, so a NaN
 fails it.
 """
@@ -46,6 +46,7 @@ MIN_HELD_GAIN = 0.10     # cross-validated residual sum of squares must fall by 
 MATERIAL = 0.25          # the effect must move a prediction by a quarter of a tolerance (scale)
 BREAKS = "breaks the model"   # the reason of a candidate that fails where the model did not
 MIN_EXPLAINED = 0.6      # share of the structured residual (beyond noise) the effect must explain
+TERM_MARGIN = 0.1        # a synthesized term is preferred to a named candidate when it explains this much more
 NOISE_FLOOR = 0.02       # smallest noise the likelihood assumes, in tolerances (scales)
 MAX_EFFECTS = 4
 INERTIA_SCALES = (0.4, 2.5)  # the range a moment of inertia may be scaled over
@@ -61,7 +62,8 @@ FIT_TOLERANCE = 1e-4
 CANDIDATE_LEGS = ((1.0, 0.002),)
 REFIT_LEGS = LEGS[-2:]
 RULES = {"min_evidence_bic_decrease": MIN_EVIDENCE, "min_explained_share": MIN_EXPLAINED,
-         "material_share_of_scale": MATERIAL, "min_cross_validated_gain": MIN_HELD_GAIN}
+         "material_share_of_scale": MATERIAL, "min_cross_validated_gain": MIN_HELD_GAIN,
+         "term_margin_share": TERM_MARGIN}
 
 
 # --------------------------------------------------------------------------- the rules
@@ -475,16 +477,22 @@ def cross_validate(ev: Evidence, current: Simulator, ch: Change, factors: Factor
 
 def best_out_of_sample(ev: Evidence, tried: list[Candidate], current: Simulator, changes: Mapping[str, Change],
                        factors: FactorSet, say, ahead: Mapping[str, float] | None = None) -> Candidate | None:
-    """Of the candidates that passed the fit tests, the one that leaves the least residual (the
-    most explained) and pays off in cross-validation; ties keep the order of the BIC change
-    (``ahead``: sums already computed, by name: :func:`try_changes`). The BIC change weighs each
-    channel by its noise, and a stand-in that moves many quiet rows a little can carry more of it
-    than the change that removes the structure: a library effect at its bound against the truth's
-    term, BIC -13,926 explaining 70 % against -3,957 explaining 89 %; cross-validated 1.46e4
-    against 1.08e4, the model 1.80e4."""
+    """Of the candidates that passed the fit tests, the one that explains the most of the
+    structured residual and pays off in cross-validation; a synthesized term counts
+    :data:`TERM_MARGIN` less, and ties keep the order of the BIC change (``ahead``: sums already
+    computed, by name: :func:`try_changes`).
+
+    The BIC change weighs each channel by its noise, and a stand-in that moves many quiet rows a
+    little can carry more of it than the change that removes the structure: a library effect at
+    its bound against the truth's term, BIC -13,926 explaining 70 % against -3,957 explaining
+    89 % (cross-validated 1.46e4 against 1.08e4, the model 1.80e4). The margin: the best of a
+    dictionary of terms fits a campaign's noise a little better than any one physical effect
+    (pitch damping x Tc against K_Cmq on a Cmq x0.5 campaign, both 100 % to the printed digit)."""
     everything = sorted({i for _, test in ev.folds() for i in test})
     cv0 = None
-    for c in sorted((c for c in tried if not c.reason), key=lambda c: (c.rss_fit[1], c.delta_bic)):
+    def explains(c: Candidate) -> float:
+        return c.share - (TERM_MARGIN if c.kind == "term" else 0.0)
+    for c in sorted((c for c in tried if not c.reason), key=lambda c: (-explains(c), c.delta_bic)):
         cv0 = ev.rows(current, everything).rss() if cv0 is None else cv0     # the model's: the same for each
         cv1 = (ahead or {}).get(c.effect)
         cv1 = ev.cross_validate(current, changes[c.effect], factors) if cv1 is None else cv1
