@@ -13,8 +13,8 @@ flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.ev
    that bias and noise is material (a quarter of its scale,
    :data:`jsbsim_calib.evaluation.evaluate_dynamic.CHANNEL_SCALES`) and more than the noise could give (a
    chi-square test), over every test or, for a body rate, over the tests that move its axis's
-   surface (:func:`excites`: the steady tests dilute a moment the maneuvers show); an axis (:data:`jsbsim_calib.evaluation.evaluate_dynamic.AXIS_CHANNELS`) when one of its
-   channels is;
+   surface (:func:`excites`: the steady tests dilute a moment the maneuvers show); an axis
+   (:data:`jsbsim_calib.evaluation.evaluate_dynamic.AXIS_CHANNELS`) when one of its channels is;
 2. screen the candidates of the most structured axis by equation error (:func:`screen`,
    :mod:`.equation_error`: the model's moment at every recorded state against the moment
    the recorded motion needs; no flight): the library effects acting on it, the stage-2b
@@ -409,7 +409,8 @@ def diagnose_channel(channel: str, responses: Sequence[Response]) -> ChannelDiag
         beyond, p_own = _beyond_noise(np.concatenate([rest[ends[k]:ends[k + 1]] for k in own]), d.noise)
         structured, why = _verdict(d, beyond, p_own, unit)
         if structured:
-            d.structured, d.reason = True, f"{why}; over the tests that move its axis ({', '.join(flown[k].test.id for k in own)})"
+            ids = ", ".join(flown[k].test.id for k in own)
+            d.structured, d.reason = True, f"{why}; over the tests that move its axis ({ids})"
     return d
 
 
@@ -527,8 +528,8 @@ def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests,
     """Rank every candidate of the structured axes by equation error (module
     :mod:`.equation_error`), then keep the finalists to fly: first the :data:`FINALISTS`
     strongest named candidates (effects, factors, inertias), with the strongest single term
-    (:func:`_top_term`); then, if none of those passes, the sparse selection of dictionary terms as one synthesized effect (a term of the
-    same form as a factor is that factor)."""
+    (:func:`_top_term`); then, if none of those passes, the sparse selection of dictionary terms
+    as one synthesized effect (a term of the same form as a factor is that factor)."""
     t0 = time.perf_counter()
     axes = (primary_axis(diag),)
     cols, effects = _columns(current, lib, axes)

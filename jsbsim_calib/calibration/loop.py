@@ -16,9 +16,9 @@ metric's residuals scaled by its noise and counted by its independent samples, t
 the structured residual it explains in the metrics it moves (net of what it spoils), and
 how far it moves a prediction. Those that pass are cross-validated (folds of the evidence:
 points, or whole maneuvers) in the order of the share they explain (a synthesized term
-:data:`TERM_MARGIN` less), and the first that pays off out of sample is added (:func:`best_out_of_sample`). The test a
-candidate failed is its reason. Every test is written as what passing requires, so a NaN
-fails it.
+:data:`TERM_MARGIN` less), and the first that pays off out of sample is added
+(:func:`best_out_of_sample`). The test a candidate failed is its reason. Every test is written
+as what passing requires, so a NaN fails it.
 """
 from __future__ import annotations
 
@@ -488,10 +488,11 @@ def best_out_of_sample(ev: Evidence, tried: list[Candidate], current: Simulator,
     89 % (cross-validated 1.46e4 against 1.08e4, the model 1.80e4). The margin: the best of a
     dictionary of terms fits a campaign's noise a little better than any one physical effect
     (pitch damping x Tc against K_Cmq on a Cmq x0.5 campaign, both 100 % to the printed digit)."""
-    everything = sorted({i for _, test in ev.folds() for i in test})
-    cv0 = None
     def explains(c: Candidate) -> float:
         return c.share - (TERM_MARGIN if c.kind == "term" else 0.0)
+
+    everything = sorted({i for _, test in ev.folds() for i in test})
+    cv0 = None
     for c in sorted((c for c in tried if not c.reason), key=lambda c: (-explains(c), c.delta_bic)):
         cv0 = ev.rows(current, everything).rss() if cv0 is None else cv0     # the model's: the same for each
         cv1 = (ahead or {}).get(c.effect)

@@ -320,7 +320,8 @@ def write_close_loop_report(result, out_dir: Path, written: Path | None = None) 
          "information criterion <= -10), a material effect, at least 60 % of the structured residual explained "
          "and a 10 % gain in 4-fold cross-validation, and of those that pass the one that explains the most is "
          "added (a synthesized term needs a tenth more than a library effect); then it is refitted with the "
-         "calibration factors of the same metrics. Repeat until nothing passes. Every 4th point is held out from the fits.", "",
+         "calibration factors of the same metrics. Repeat until nothing passes. Every 4th point is held out "
+         "from the fits.", "",
          f"**Added:** {', '.join(result.added) if result.added else 'nothing'}"
          + (f"; written to `{written}`." if written else "."), "",
          "## Diagnosis before", ""] + _diag_table(result.diagnosis_before)
