@@ -70,6 +70,7 @@ from scipy import stats
 from ..data.flighttest import load_control_travel
 from ..data.timehistory import CHANNELS, fitted_polyline, noise_sigma
 from ..evaluation.evaluate_dynamic import AXIS_CHANNELS, CHANNEL_SCALES, FAIL_RESIDUAL, RecordedTest, load_recorded_tests
+from ..evaluation.part60 import INPUT_MOVED
 from ..core.errors import CalibError, InputError, Problem
 from ..core.executor import SERIAL, Executor
 from ..factors import FactorSet, step_factors
@@ -100,7 +101,6 @@ MIN_CORRELATION = 0.3        # |r| of a state or input listed as a correlate
 # own campaigns (seeds 1-5) reach 0.27 of the pitch scale over the elevator tests, the rates 0.13.
 RATE_CHANNELS = ("p_deg_s", "q_deg_s", "r_deg_s")
 AXIS_SURFACE = {"roll": "aileron_deg", "pitch": "elevator_deg", "yaw": "rudder_deg"}
-DELIBERATE_DEG = 0.5         # an input range above it is the maneuver's (pilot loops on Level 5: 0.16 deg at most)
 FINALISTS = 3                # named candidates flown per round (the strongest by equation error)
 SCREEN_LISTED = 12           # ranked candidates a report lists per round
 EE_AXES_OF = {"roll": ("ROLL",), "yaw": ("YAW",), "pitch": ("PITCH",)}   # LIFT: alpha's noise dominates it
@@ -424,9 +424,11 @@ def _beyond_noise(rest: np.ndarray, noise: float) -> tuple[float, float]:
 
 
 def excites(test: RecordedTest, axis: str) -> bool:
-    """The test moves its axis's surface on purpose: an input of a range over :data:`DELIBERATE_DEG`
-    (a pilot loop's corrections stay under it)."""
-    return any(i.channel == AXIS_SURFACE[axis] and float(np.ptp(np.asarray(i.value, float))) > DELIBERATE_DEG
+    """The test moves its axis's surface on purpose: an input whose range is over what the Part 60
+    report calls moved (:data:`jsbsim_calib.evaluation.part60.INPUT_MOVED`, 0.5 deg; the pilot loops
+    of the Level 5 plan move a surface by 0.16 deg at most)."""
+    surface = AXIS_SURFACE[axis]
+    return any(i.channel == surface and float(np.ptp(np.asarray(i.value, float))) > INPUT_MOVED[surface]
                for i in test.maneuver.inputs)
 
 
@@ -540,18 +542,18 @@ def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests,
     changes = [_named_change(r, effects) for r in named]
     explains = {c.name: explained_rows(lin, r.columns, r.estimate) for c, r in zip(changes, named)}
     top = _top_term(ranked, lin)
-    if top is not None:
-        changes.append(_synthesized_change(top, lin, tests, changes))
-    first, then = list({c.name: c for c in changes if c is not None}.values()), []
+    top_change = _synthesized_change(top, lin, tests, changes) if top is not None else None
+    changes += [top_change] if top_change is not None else []
+    first, then = list({c.name: c for c in changes}.values()), []
     sel = select(_terms_only(lin)) if lin.residual.size else None
     chosen = _synthesized_change(sel, lin, tests, first) if sel is not None and sel.terms else None
     if chosen is not None and chosen.name not in {c.name for c in first}:
         (then if chosen.kind == "term" else first).append(chosen)     # a selected factor's form: that factor, named
-    for pick, c in ((top, changes[-1] if top is not None else None), (sel, chosen)):
+    for pick, c in ((top, top_change), (sel, chosen)):
         if pick is not None and c is not None and c.name not in explains:
             explains[c.name] = explained_rows(_terms_only(lin), [t.name for t in pick.terms], pick.coefficients)
     return Screen(rnd, tuple(axes), int(lin.residual.size), ranked, sel, [c.name for c in first + then],
-                  time.perf_counter() - t0, changes[-1].name if top is not None else "", explains), first, then
+                  time.perf_counter() - t0, top_change.name if top_change is not None else "", explains), first, then
 
 
 def _top_term(ranked: Sequence[Ranked], lin: Linearization) -> Selection | None:
