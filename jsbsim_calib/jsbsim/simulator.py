@@ -10,6 +10,7 @@ Use it in a ``with`` block: the sandbox is removed when the block ends, also on 
 """
 from __future__ import annotations
 
+import _thread
 import shutil
 from pathlib import Path
 from typing import Mapping
@@ -334,6 +335,8 @@ class Simulator:
                 shutil.rmtree(self._box, ignore_errors=True)
             if getattr(self, "_stage", None):
                 shutil.rmtree(self._stage, ignore_errors=True)
+        except KeyboardInterrupt:        # a Ctrl-C that lands here goes back to the main thread, not lost
+            _thread.interrupt_main()
         except Exception:
             pass
 
