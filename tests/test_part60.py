@@ -249,7 +249,7 @@ JUDGED_ON_LEVEL5 = {"1.c.1", "1.f.1", "2.b.1/2.b.4", "2.b.2/2.b.5", "2.b.3/2.b.6
 
 @pytest.mark.slow
 def test_the_model_passes_its_own_level5_flight_test_at_every_seed(tmp_path):
-    """The packaged Level 5 plan (20 maneuvers, sensor noise and pilot scatter) flown by the
+    """The packaged Level 5 plan (22 maneuvers, sensor noise and pilot scatter) flown by the
     committed C172 and judged against that flight, at ten seeds: every test PASS or n/a, and
     the fourteen tests with a tolerance all judged. Before the replay fitted a noisy input's
     polyline in least squares (``INPUT_NOISE_SIGMAS``), it flew the rudder's sensor noise as

@@ -47,7 +47,9 @@ def test_default_plan_covers_level5_and_writes_valid_files(flown):
     assert plan.sample_rate_hz == 10.0 and {m.kind for m in plan.maneuvers} == LEVEL5_KINDS
     assert all(m.duration_s <= (150 if m.kind == "phugoid" else 60) for m in plan.maneuvers)
     records = load_time_histories(flown[5, 1.0])
-    assert len(records) == len(plan.maneuvers) == 20
+    assert len(records) == len(plan.maneuvers) == 22
+    # three pitch pulses, at the flight test's three conditions (C.19, C.21, C.23)
+    assert [m.id for m in plan.maneuvers if m.kind == "pitch_pulse"] == ["S.07", "S.21", "S.22"]
     for spec, th in zip(plan.maneuvers, records):
         assert th.meta.test_id == spec.id and th.meta.kind == spec.kind and th.meta.part60 == spec.part60
         assert th.time_s[-1] == pytest.approx(spec.duration_s) and np.all(np.diff(th.time_s) == pytest.approx(0.1))
@@ -93,7 +95,7 @@ def test_cli_synth_plan_and_settings(truth, tmp_path, capsys):
     out = tmp_path / "th"
     assert main(["--quiet", "synth", "--truth", str(truth), "--plan", "level5", "--out", str(out), "--seed", "2",
                  "--noise", "0.5"]) == 0
-    assert len(list(out.glob("*.csv"))) == 20 and "20 time histories" in capsys.readouterr().out
+    assert len(list(out.glob("*.csv"))) == 22 and "22 time histories" in capsys.readouterr().out
     assert main(["--quiet", "synth", "--truth", str(truth), "--plan", "level5", "--out", str(out),
                  "--noise", "-1"]) == 2
     assert "--noise" in capsys.readouterr().err
