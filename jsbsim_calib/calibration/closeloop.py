@@ -207,6 +207,9 @@ class TrimEvidence:
     def moves(self, ch: Change) -> tuple[str, ...]:
         return tuple(ch.effect.affects) if ch.effect is not None else ()
 
+    def fitted_on(self, ch: Change) -> tuple[str, ...]:
+        return ()                       # every metric: a trim answers every change at once
+
     def named(self, rnd: int, current: Simulator, diag, factors: FactorSet) -> list[Change]:
         return [Change.of_effect(e) for name, e in self.lib.items()
                 if name not in current.effects and set(e.affects) & set(self.ds.metrics)]

@@ -127,6 +127,7 @@ class Evidence(Protocol):
     def parts(self) -> tuple[list[int], list[int]]: ...              # fitted, held out
     def folds(self) -> list[tuple[list[int], list[int]]]: ...        # (train, test) of cross-validation
     def moves(self, ch: "Change") -> tuple[str, ...]: ...            # the metrics a change acts on
+    def fitted_on(self, ch: "Change") -> tuple[str, ...]: ...        # the metrics its fit minimizes (() every row)
     def named(self, rnd: int, current: Simulator, diag, factors: FactorSet) -> list["Change"]: ...
     def synthesized(self, rnd: int, current: Simulator, diag, factors: FactorSet, start: "Round") -> list["Change"]: ...
     def companions(self, ch: "Change") -> list[str]: ...
@@ -317,15 +318,18 @@ def _inertia_note(axis: str, scale: float) -> str:
 
 def _fit_inertia(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
                  part: Sequence[int]) -> tuple[Simulator, Fitted]:
-    """A moment of inertia scaled by the factor that minimizes the residuals: a bounded Brent
-    search about its start estimate (one reload and one evaluation of the part per step)."""
+    """A moment of inertia scaled by the factor that minimizes the residuals the evidence fits
+    it on (:meth:`Evidence.fitted_on`): a bounded Brent search about its start estimate (one
+    reload and one evaluation of the part per step)."""
     trial = current.clone()
     try:
-        base = trial.moment_of_inertia(ch.target)
+        base, on = trial.moment_of_inertia(ch.target), ev.fitted_on(ch)
 
         def cost(s: float) -> float:
             trial.set_moment_of_inertia(ch.target, base * s)
-            return ev.rows(trial, part).rss()
+            rows = ev.rows(trial, part)
+            r = rows.residual[np.isin(rows.metric, on)] if on else rows.residual
+            return float(r @ r)
 
         s0 = 1.0 + dict(ch.start).get(ch.target, 0.0)
         lo = max(INERTIA_SCALES[0], min(s0, INERTIA_SCALES[1]) - INERTIA_BRACKET)
