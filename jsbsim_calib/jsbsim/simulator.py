@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import _thread
 import shutil
+import threading
 from pathlib import Path
 from typing import Mapping
 
@@ -37,6 +38,17 @@ PROPELLER_CACHE = 64         # baked propeller files kept per simulator (a fit's
 KEPT_JSBSIMS = 6             # loaded JSBSims kept per simulator, one per set of propeller factors (about 3 MB each)
 START_SPEED_FPS = 150.0      # [ft/s] true airspeed of the initial conditions after a load (never zero)
 DONT_RUN_IC = 2              # JSBSim's FGFDMExec::DONT_EXECUTE_RUN_IC (reset_to_initial_conditions)
+INTERRUPT_DELAY_S = 0.05     # a Ctrl-C caught in a finalizer is raised again this much later
+
+
+def _interrupt_main_later() -> None:
+    """A Ctrl-C caught in a finalizer, raised again in the main thread once the finalizer has
+    returned. Raised there and then (``_thread.interrupt_main`` from the main thread, or from a
+    thread whose start the finalizer waits for), Python prints it as an ignored exception and
+    carries on: ``tests/test_interrupts.py`` catches both."""
+    timer = threading.Timer(INTERRUPT_DELAY_S, _thread.interrupt_main)
+    timer.daemon = True
+    timer.start()
 
 
 class Simulator:
@@ -335,8 +347,8 @@ class Simulator:
                 shutil.rmtree(self._box, ignore_errors=True)
             if getattr(self, "_stage", None):
                 shutil.rmtree(self._stage, ignore_errors=True)
-        except KeyboardInterrupt:        # a Ctrl-C that lands here goes back to the main thread, not lost
-            _thread.interrupt_main()
+        except KeyboardInterrupt:
+            _interrupt_main_later()
         except Exception:
             pass
 
