@@ -138,10 +138,11 @@ def test_a_ctrl_c_after_the_command_is_over_changes_nothing(root):
 
 
 CLEANUP_INTERRUPTED = """
-import gc, shutil, sys, time
+import gc, shutil, signal, sys, time
 from pathlib import Path
 from jsbsim_calib.jsbsim.simulator import Simulator
 
+signal.signal(signal.SIGINT, signal.default_int_handler)    # as the command line takes it (a test worker ignores it)
 sim = Simulator(Path(sys.argv[1]), "c172")
 box, rmtree = sim.sandbox, shutil.rmtree
 
