@@ -99,7 +99,8 @@ MIN_CORRELATION = 0.3        # |r| of a state or input listed as a correlate
 # the Level 5 plan: p 0.235 of its scale over every test, 1.14 over the roll pulse and step). The
 # attitudes and the airspeed integrate the rates and carry the replay's drift: the committed model's
 # own campaigns (seeds 1-5) reach 0.27 of the pitch scale over the elevator tests, the rates 0.13.
-RATE_CHANNELS = ("p_deg_s", "q_deg_s", "r_deg_s")
+AXIS_RATE = {"roll": "p_deg_s", "pitch": "q_deg_s", "yaw": "r_deg_s"}
+RATE_CHANNELS = tuple(AXIS_RATE.values())
 AXIS_SURFACE = {"roll": "aileron_deg", "pitch": "elevator_deg", "yaw": "rudder_deg"}
 FINALISTS = 3                # named candidates flown per round (the strongest by equation error)
 SCREEN_LISTED = 12           # ranked candidates a report lists per round
@@ -110,7 +111,7 @@ INERTIA_OF = {"roll": "ixx", "pitch": "iyy", "yaw": "izz"}
 # moment gives and changes no steady state, while the attitudes and the airspeed integrate the
 # replay's input errors over the long maneuvers. Iyy x1.6 on the Level 5 campaign (seed 2): fitted on
 # every channel 1.525, on the pitch rate 1.582 (docs/benchmarks.md).
-INERTIA_RATE = {"ixx": "p_deg_s", "iyy": "q_deg_s", "izz": "r_deg_s"}
+INERTIA_RATE = {INERTIA_OF[a]: rate for a, rate in AXIS_RATE.items()}
 CHANNEL_AXIS = {c: a for a, chans in AXIS_CHANNELS.items() for c in chans}
 MOMENT_AXIS = {"ROLL": "roll", "YAW": "yaw", "SIDE": "yaw", "PITCH": "pitch", "LIFT": "pitch", "DRAG": "pitch"}
 COUPLED = {"roll": ("roll", "yaw"), "yaw": ("roll", "yaw"), "pitch": ("pitch",)}
