@@ -330,6 +330,9 @@ class Simulator:
     def close(self) -> None:
         self.fdm = self._nodes_of = None
         self._kept = {}
+        self._remove_sandbox()
+
+    def _remove_sandbox(self) -> None:
         if self._box is not None:
             shutil.rmtree(self._box, ignore_errors=True)
         if getattr(self, "_stage", None):
@@ -343,10 +346,7 @@ class Simulator:
 
     def __del__(self):
         try:
-            if self._box is not None:
-                shutil.rmtree(self._box, ignore_errors=True)
-            if getattr(self, "_stage", None):
-                shutil.rmtree(self._stage, ignore_errors=True)
+            self._remove_sandbox()
         except KeyboardInterrupt:
             _interrupt_main_later()
         except Exception:
