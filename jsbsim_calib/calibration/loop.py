@@ -1,7 +1,7 @@
 """The close-the-loop engine: one loop for every kind of evidence.
 
 diagnose -> candidates -> fit -> evidence -> add -> refit, round after round, until nothing
-passes; the same rules judge every candidate on every kind of data. What differs per kind of
+passes (after an add, the evidence refits its own nuisance parameters first: :meth:`Evidence.rebase`); the same rules judge every candidate on every kind of data. What differs per kind of
 evidence is an adapter (:class:`Evidence`): what a residual row is and its scale, how the
 residual is diagnosed, how the points or maneuvers form folds, which candidates a round
 tries and how a candidate is flown. :mod:`.closeloop` adapts trims (POH tables, flight-test
@@ -128,6 +128,7 @@ class Evidence(Protocol):
     def folds(self) -> list[tuple[list[int], list[int]]]: ...        # (train, test) of cross-validation
     def moves(self, ch: "Change") -> tuple[str, ...]: ...            # the metrics a change acts on
     def fitted_on(self, ch: "Change") -> tuple[str, ...]: ...        # the metrics its fit minimizes (() every row)
+    def rebase(self, sim: Simulator) -> None: ...                    # its nuisance parameters refitted on sim
     def named(self, rnd: int, current: Simulator, diag, factors: FactorSet) -> list["Change"]: ...
     def synthesized(self, rnd: int, current: Simulator, diag, factors: FactorSet, start: "Round") -> list["Change"]: ...
     def companions(self, ch: "Change") -> list[str]: ...
@@ -620,6 +621,7 @@ def run_loop(ev: Evidence, sim: Simulator, *, max_effects: int = MAX_EFFECTS, di
             current.close()
             current = trial
             added.append(ch)
+            ev.rebase(current)
             refits.append(refit(ev, rnd, current, added, factors, say))
             factors = refits[-1].final
             current.set_factors(factors)
