@@ -210,8 +210,9 @@ class TrimEvidence:
     def fitted_on(self, ch: Change) -> tuple[str, ...]:
         return ()                       # every metric: a trim answers every change at once
 
-    def rebase(self, sim: Simulator) -> None:
+    def rebase(self, sim: Simulator) -> bool:
         """Nothing: a trim has no nuisance parameter of its own."""
+        return False
 
     def named(self, rnd: int, current: Simulator, diag, factors: FactorSet) -> list[Change]:
         return [Change.of_effect(e) for name, e in self.lib.items()

@@ -35,7 +35,8 @@ flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.ev
    explained (net of what it spoils elsewhere), a material change of some sample, and a 10 %
    gain in cross-validation whose folds are whole maneuvers (:data:`CV_FOLDS`);
 3. add the best, fit the inputs' offsets again on the model with it
-   (:meth:`TimeHistoryEvidence.rebase`), refit an added effect's or term's factors with the stage-2b factors of its
+   (:meth:`TimeHistoryEvidence.rebase`) and the change again alone with them
+   (:func:`.loop.fit_again`), refit an added effect's or term's factors with the stage-2b factors of its
    axis (``step_factors("yaw dynamics")`` ...; those it duplicates, ``same_as``, excepted; the
    prior of the stage-2b steps about where they stand; a refitted factor or a scaled inertia
    keeps the value of its own fit), repeat until nothing passes;
@@ -1005,15 +1006,17 @@ class TimeHistoryEvidence:
         on every channel."""
         return (INERTIA_RATE[ch.target],) if ch.kind == "inertia" else ()
 
-    def rebase(self, sim: Simulator) -> None:
+    def rebase(self, sim: Simulator) -> bool:
         """The inputs' offsets fitted again on the model as it stands (a change just added), from
         where they stood (:func:`fit_input_offsets`), and their directions with them
         (:func:`offset_bases`). Traced on an undeclared Cm += K elevator x qbar (Level 5, seed 1):
         fitted on the model without the term, the pulses' elevator offsets stood at -0.29 to
-        -0.32 deg, and kept, they held pitch at 35 % of before."""
+        -0.32 deg, and kept, they held pitch at 35 % of before. True where a test has offsets
+        (the loop then fits the change again: :func:`.loop.fit_again`)."""
         self.offsets = fit_input_offsets(sim, self.raw, self.executor, start=self.offsets)
         self.tests = [with_offsets(t, o) for t, o in zip(self.raw, self.offsets)]
         self.bases = offset_bases(sim, self.tests, self.executor)
+        return any(self.offsets)
 
     def named(self, rnd: int, current: Simulator, diag, factors: FactorSet) -> list[Change]:
         scr, first, self._terms = screen(rnd, current, self.lib, self.tests, diag)
