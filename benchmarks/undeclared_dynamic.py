@@ -14,7 +14,9 @@ model with those records. Cases (different axes and state products, one a moment
 * ``pitch_elevator_qbar``: Cm += -4e-4 x elevator [deg] x qbar [psf];
 * ``pitch_elevator_flaps``: Cm += 2e-4 x elevator [deg] x flaps [deg] (elevator power 25 % less
   at flaps 20: the downwash at the tail);
-* ``ixx``: the roll moment of inertia x 2.
+* ``ixx``: the roll moment of inertia x 2;
+* ``library_yaw_roll_rate``: not undeclared: the dynamic library's ``yaw_due_to_roll_rate`` at
+  K = -0.05 (Cn += K p b/2V), which the loop must add as that library effect.
 
 A case is *found* when the loop adds a term on the truth's axis whose regressor is the truth's
 (a synthesized effect may hold other terms: their fitted values are listed), or the right
@@ -34,8 +36,9 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from fault_recovery import REPO, campaign_close_loop       # this folder: a sibling benchmark's run
-from jsbsim_calib.calibration.closeloop_dynamic import CHANNEL_AXIS
+from jsbsim_calib.calibration.closeloop_dynamic import CHANNEL_AXIS, dynamic_library
 from jsbsim_calib.jsbsim.aircraft import moment_of_inertia, set_moment_of_inertia
+from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.xml import read, write
 from jsbsim_calib.synthetic.truth import UndeclaredTerm, root_copy, truth_copy
 
@@ -44,13 +47,21 @@ CASES = {"roll_aileron_qbar": ("ROLL", "aileron x qbar", -4e-5, "roll"),
          "yaw_aileron_alpha": ("YAW", "aileron x alpha", -0.03, "yaw"),
          "pitch_elevator_qbar": ("PITCH", "elevator x qbar", -4e-4, "pitch"),
          "pitch_elevator_flaps": ("PITCH", "elevator x flaps", 2e-4, "pitch"),
-         "ixx": ("inertia", "ixx", 2.0, "roll")}
+         "ixx": ("inertia", "ixx", 2.0, "roll"),
+         "library_yaw_roll_rate": ("library", "yaw_due_to_roll_rate", -0.05, "yaw")}
 COEFFICIENT = {"ROLL": "Cl", "YAW": "Cn", "PITCH": "Cm"}
 
 
 def truth_for(case: str, tmp: Path) -> tuple[Path, Path]:
     axis, what, value, _ = CASES[case]
     root = root_copy(REPO, tmp / "root", folders=("aircraft", "engine", "airfoils", "data"))
+    if axis == "library":
+        truth = truth_copy(REPO / "aircraft" / "c172", tmp / "truth" / "c172", root=root)
+        with Simulator.from_dir(truth, root) as s:
+            eff = dynamic_library()[what]
+            s.add_effect(eff, {f.property: value for f in eff.factors})
+            write(s.aircraft_tree(), truth / "c172.xml")
+        return truth, root
     if axis != "inertia":
         return truth_copy(REPO / "aircraft" / "c172", tmp / "truth" / "c172",
                           [UndeclaredTerm(axis, value, what)], root=root), root
@@ -64,6 +75,9 @@ def truth_for(case: str, tmp: Path) -> tuple[Path, Path]:
 def found(case: str, res) -> tuple[str, float | None]:
     """The added change that names the truth's states and axis, and its fitted value."""
     axis, what, _, _ = CASES[case]
+    if axis == "library":
+        label = f"{what}.{dynamic_library()[what].factors[0].name}"
+        return (what, res.factors[label]) if what in res.added else ("", None)
     if axis == "inertia":
         c = next((c for c in res.candidates if c.accepted and c.effect == f"inertia {what}"), None)
         return (c.effect, c.factors.get(f"{what}_scale")) if c else ("", None)
