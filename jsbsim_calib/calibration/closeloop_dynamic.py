@@ -1066,10 +1066,15 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
     ev = TimeHistoryEvidence([tests[k] for k in flying], default_effects() if effects is None else dict(effects),
                              executor, [bases[k] for k in flying], [offsets[k] for k in flying])
 
-    def flown(s: Simulator) -> list[Response]:   # every test, its offsets as the loop left them, re-fitted (linearized)
+    def as_left(every: list, loop: list) -> list:      # the loop's value for each test it flew
+        out = list(every)
         for j, k in enumerate(flying):
-            weighted[k], bases[k], offsets[k] = ev.tests[j], ev.bases[j], ev.offsets[j]
-        return [projected(x, Q) for x, Q in zip(fly_spread(s, weighted, executor), bases)]
+            out[k] = loop[j]
+        return out
+
+    def flown(s: Simulator) -> list[Response]:   # every test, its offsets as the loop left them, re-fitted (linearized)
+        return [projected(x, Q) for x, Q in zip(fly_spread(s, as_left(weighted, ev.tests), executor),
+                                                 as_left(bases, ev.bases))]
 
     diag0 = diagnose_responses(before)
     for c, d in diag0.items():
@@ -1077,10 +1082,10 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
     run = run_loop(ev, sim, max_effects=max_effects, diagnosis=diag0, final=flown, progress=say)
     notes = [f"{r.test.id}: not flown ({r.failure}); set aside: the candidates are fitted and cross-validated on the "
              "maneuvers the model flies" for r in before if r.failure]
-    return CloseLoopDynamicResult(sim.name, sim.root, weighted, before, run.final, diag0, diagnose_responses(run.final),
-                                  run.candidates, run.added_names, run.refits, run.factors, run.tree,
-                                  time.perf_counter() - t0, notes, ev.screens,
-                                  {t.id: o for t, o in zip(tests, offsets) if o})
+    return CloseLoopDynamicResult(sim.name, sim.root, as_left(weighted, ev.tests), before, run.final, diag0,
+                                  diagnose_responses(run.final), run.candidates, run.added_names, run.refits,
+                                  run.factors, run.tree, time.perf_counter() - t0, notes, ev.screens,
+                                  {t.id: o for t, o in zip(tests, as_left(offsets, ev.offsets)) if o})
 
 
 # --------------------------------------------------------------------------- files

@@ -1,8 +1,9 @@
 """The close-the-loop engine: one loop for every kind of evidence.
 
 diagnose -> candidates -> fit -> evidence -> add -> refit, round after round, until nothing
-passes (after an add, the evidence refits its own nuisance parameters first: :meth:`Evidence.rebase`); the same rules judge every candidate on every kind of data. What differs per kind of
-evidence is an adapter (:class:`Evidence`): what a residual row is and its scale, how the
+passes (after an add, the evidence refits its own nuisance parameters, and the change is fitted
+again on them: :meth:`Evidence.rebase`, :func:`fit_again`); the same rules judge every
+candidate on every kind of data. What differs per kind of evidence is an adapter (:class:`Evidence`): what a residual row is and its scale, how the
 residual is diagnosed, how the points or maneuvers form folds, which candidates a round
 tries and how a candidate is flown. :mod:`.closeloop` adapts trims (POH tables, flight-test
 snapshots, flap climbs, G1000 segments), :mod:`.closeloop_dynamic` time histories.
