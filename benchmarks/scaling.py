@@ -75,15 +75,15 @@ def chain(executor) -> np.ndarray:
     return np.array(list(s2b.factors.as_dict().values()))
 
 
-def run(job, kind: str, workers: int) -> tuple[float, float, np.ndarray]:
-    """Wall time, time in batches and the result of ``job`` on ``kind`` with ``workers``
-    (one worker: this process). The executor starts before the clock (a cluster's start-up
-    is not the job's)."""
+def run(job, kind: str, workers: int) -> tuple[float, Timed, np.ndarray]:
+    """Wall time, the timed executor (time in batches, their count) and the result of ``job``
+    on ``kind`` with ``workers`` (one worker: this process). The executor starts before the
+    clock (a cluster's start-up is not the job's)."""
     with make_executor("serial" if workers == 1 else kind, workers) as ex:
         timed = Timed(ex)
         t0 = time.perf_counter()
         out = job(timed)
-        return time.perf_counter() - t0, timed.parallel_s, out
+        return time.perf_counter() - t0, timed, out
 
 
 def amdahl(e: float, p: int) -> float:
@@ -100,23 +100,24 @@ def table(title: str, job, kinds: list[str], workers: list[int], serial: bool = 
     print(f"\n{title}")
     wall1, ref = None, None
     if serial:
-        wall1, par1, ref = run(job, "serial", 1)
-        e1 = max(0.0, 1.0 - par1 / wall1)
+        wall1, timed1, ref = run(job, "serial", 1)
+        e1 = max(0.0, 1.0 - timed1.parallel_s / wall1)
         print(f"  1 worker (this process): {wall1:7.2f} s; serial fraction from this run {e1:.3f} (time outside "
               f"batches) -> predicts " + ", ".join(f"{amdahl(e1, p):.1f}x at {p}" for p in PREDICT_AT))
     print(f"  {'executor':<9}{'workers':>8}{'wall s':>9}{'speed-up':>10}{'efficiency':>11}{'Karp-Flatt e':>14}"
-          f"{'predicts':>22}  same bits")
+          f"{'predicts':>22}  same bits  in batches / outside [s]")
     for kind in kinds:
         for p in [w for w in workers if w > 1]:
-            wall, _, out = run(job, kind, p)
+            wall, timed, out = run(job, kind, p)
             ref = out if ref is None else ref
             same = "yes" if out.shape == ref.shape and np.array_equal(out, ref) else "NO"
+            split = f"{timed.parallel_s:.2f} ({timed.batches}) / {wall - timed.parallel_s:.2f}"
             if wall1 is None:
-                print(f"  {kind:<9}{p:>8}{wall:>9.2f}{'':>10}{'':>11}{'':>14}{'':>22}  {same}")
+                print(f"  {kind:<9}{p:>8}{wall:>9.2f}{'':>10}{'':>11}{'':>14}{'':>22}  {same:<9}  {split}")
                 continue
             s, e = wall1 / wall, karp_flatt(wall1 / wall, p)
             pred = ", ".join(f"{amdahl(max(e, 1e-9), q):.1f}x@{q}" for q in PREDICT_AT)
-            print(f"  {kind:<9}{p:>8}{wall:>9.2f}{s:>9.2f}x{s / p:>10.0%}{e:>14.3f}{pred:>22}  {same}")
+            print(f"  {kind:<9}{p:>8}{wall:>9.2f}{s:>9.2f}x{s / p:>10.0%}{e:>14.3f}{pred:>22}  {same:<9}  {split}")
 
 
 PROFILE_GROUPS = (   # (what, functions whose cumulative time it is), in the order printed
