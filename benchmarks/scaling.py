@@ -14,8 +14,9 @@ and 2b. It prints:
   workers (Karp-Flatt: e = (1/S - 1/p) / (1 - 1/p)); with Amdahl's law each predicts the
   speed-up at 16 and 64 workers (a fit of n factors has at most n independent Jacobian
   columns: more workers than that wait);
-* with ``--profile``, where the one-worker steady stage spends its time: JSBSim trims, loads,
-  resets, sandbox files, pickling, the least-squares algebra, and the rest.
+* with ``--profile``, where the one-worker steady stage (and, with ``--chain``, the chain)
+  spends its time: JSBSim trims, loads, resets, sandbox files, pickling, flights (their script
+  loads, frames and reads; their trims count as trims), the least-squares algebra, and the rest.
 
 Compare figures only within one run on one machine. Issue 25's targets: the steady stage on 2
 workers >= 1.8x faster than on 1; a serial fraction that predicts >= 8x at 16 workers; Dask
@@ -127,15 +128,16 @@ PROFILE_GROUPS = (   # (what, functions whose cumulative time it is), in the ord
     ("sandbox files", ("_write_sandbox",)),
     ("pickling", ("dumps", "loads")),
 )
+FLIGHTS = ("trajectory.py", "fly")   # its own time: a flight's script load, frames and reads (its trim: above)
 FIT_CALLBACKS = ("fun", "jac", "trials", "on_trial", "callback")    # fit.py's functions the solver calls
 
 
-def profile() -> None:
-    """Where the one-worker steady stage spends its time (cProfile: its overhead included)."""
+def profile(job, what: str) -> None:
+    """Where ``job`` spends its time on one worker (cProfile: its overhead included)."""
     pr = cProfile.Profile()
     t0 = time.perf_counter()
     pr.enable()
-    steady(make_executor("serial"))
+    job(make_executor("serial"))
     pr.disable()
     wall = time.perf_counter() - t0
     st = pstats.Stats(pr).stats
@@ -143,18 +145,20 @@ def profile() -> None:
     cum: dict[str, float] = {}
     for (_, _, func), (_, _, _, ct, _) in st.items():
         cum[func] = cum.get(func, 0.0) + ct
-    # the solver's own algebra: its time less that of the calls back into the fit
-    inner = sum(v[3] for (file, _, func), v in st.items() if file.endswith("fit.py") and func in FIT_CALLBACKS)
+    # the solver's own algebra: its time less that of its calls back into the fit
+    inner = sum(ct for (file, _, func), v in st.items() if file.endswith("fit.py") and func in FIT_CALLBACKS
+                for (_, _, caller), (_, _, _, ct) in v[4].items() if caller == "least_squares")
     lm = cum.get("least_squares", 0.0) - inner
-    print(f"\nprofile of the steady stage on 1 worker ({wall:.1f} s under the profiler):")
+    flights = sum(v[2] for (file, _, func), v in st.items() if file.endswith(FLIGHTS[0]) and func == FLIGHTS[1])
+    print(f"\nprofile of the {what} on 1 worker ({wall:.1f} s under the profiler):")
     shown = 0.0
-    for what, funcs in PROFILE_GROUPS:
-        t = sum(cum.get(f, 0.0) for f in funcs)
+    for name, funcs in PROFILE_GROUPS + (("JSBSim flights (trims aside)", ()),):
+        t = sum(cum.get(f, 0.0) for f in funcs) if funcs else flights
         shown += t
-        print(f"  {what:<28}{t:7.2f} s  {t / total:5.1%}")
+        print(f"  {name:<30}{t:7.2f} s  {t / total:5.1%}")
     rest = total - shown - lm
-    print(f"  {'least-squares algebra':<28}{lm:7.2f} s  {lm / total:5.1%}")
-    print(f"  {'the rest':<28}{rest:7.2f} s  {rest / total:5.1%}   (data, residuals, bookkeeping)")
+    print(f"  {'least-squares algebra':<30}{lm:7.2f} s  {lm / total:5.1%}")
+    print(f"  {'the rest':<30}{rest:7.2f} s  {rest / total:5.1%}   (data, residuals, reports' evaluations, bookkeeping)")
 
 
 def main() -> None:
@@ -162,14 +166,17 @@ def main() -> None:
     ap.add_argument("--workers", default="1,2", help="worker counts, comma-separated (default 1,2)")
     ap.add_argument("--executors", default="process,dask", help="process and/or dask (default both)")
     ap.add_argument("--chain", action="store_true", help="also the chain of stages 1, 2a and 2b")
-    ap.add_argument("--profile", action="store_true", help="a profile of the one-worker steady stage")
+    ap.add_argument("--profile", action="store_true", help="a profile of the one-worker steady stage (and chain, "
+                    "with --chain)")
     ap.add_argument("--no-serial", action="store_true", help="leave out the one-worker runs (no speed-ups)")
     ap.add_argument("--no-steady", action="store_true", help="leave out the steady stage's table (with --chain)")
     a = ap.parse_args()
     workers = sorted({int(w) for w in a.workers.split(",")})
     kinds = [k for k in a.executors.split(",") if k]
     if a.profile:
-        profile()
+        profile(steady, "steady stage")
+        if a.chain:
+            profile(chain, "chain (stages 1, 2a, 2b)")
     if not a.no_steady:
         table("C172 steady stage (stage 1 from neutral factors)", steady, kinds, workers, not a.no_serial)
     if a.chain:
