@@ -208,14 +208,15 @@ def test_an_accepted_change_is_fitted_again_from_its_values(clean, cn_p_records)
 @pytest.mark.slow
 def test_candidates_folds_and_refit_on_a_pool_give_the_serial_bits(tmp_path, cn_p_records):
     """The candidates' fits, the cross-validation folds and the refit's Jacobian run as tasks
-    (a pool of 2 here): the command's JSON (every candidate's numbers, the factors, the errors
-    before and after) is the serial run's, bit for bit. Each run is its own process, as a user
-    runs it."""
+    (a pool of 5 here: more workers than the four candidates, so the first one's folds also run
+    ahead in the fits' batch): the command's JSON (every candidate's numbers, the factors, the
+    errors before and after) is the serial run's, bit for bit. Each run is its own process, as
+    a user runs it."""
     out = {}
     for ex in ("serial", "process"):
         out[ex] = tmp_path / f"{ex}.json"
         r = subprocess.run([sys.executable, "-m", "jsbsim_calib.cli", "--root", str(REPO), "--quiet", "--executor", ex,
-                            "--workers", "2", "close-loop", "c172", "--flight-test", str(cn_p_records), "--no-write",
+                            "--workers", "5", "close-loop", "c172", "--flight-test", str(cn_p_records), "--no-write",
                             "--json", str(out[ex]), "--report-dir", str(tmp_path / ex)],
                            capture_output=True, text=True, timeout=600)
         assert r.returncode == 0, r.stderr[-2000:]

@@ -442,11 +442,15 @@ def try_changes(ev: Evidence, start: Round, current: Simulator, changes: Sequenc
     evidence's executor (each fit starts from a fresh copy of the model: the same bits on
     any executor); one that breaks the model is rejected with the error named.
 
-    ``ahead``: on a parallel executor, the folds of the first change (the likeliest: the
-    evidence lists its candidates strongest first) run in the same batch, where the fits
-    leave workers idle, and its cross-validated sum is stored here by name (the sum
-    :func:`cross_validate` gives: the same tasks, added in the same order)."""
-    run_ahead = ahead is not None and ev.executor.workers > 1 and bool(changes) and changes[0].kind != "term"
+    ``ahead``: where the fits leave workers idle (fewer changes than workers), the folds of the
+    first change (the likeliest: the evidence lists its candidates strongest first) run in the
+    same batch, and its cross-validated sum is stored here by name (the sum
+    :func:`cross_validate` gives: the same tasks, added in the same order). With as many
+    changes as workers they would only lengthen the batch, and they are lost where another
+    change is taken (a Level 5 campaign of Cl += K aileron x qbar, pool of 2: the four folds of
+    K_da_slope, listed first, ran beside the four fits; the term was taken)."""
+    run_ahead = (ahead is not None and ev.executor.workers > len(changes) and bool(changes)
+                 and changes[0].kind != "term")
     folds = ev.folds() if run_ahead else []
     folds = folds if len(folds) >= 2 else []
     items = [("fit", ch) for ch in changes] + [("fold", changes[0], f) for f in folds]
