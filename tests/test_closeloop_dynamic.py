@@ -293,8 +293,6 @@ def test_b_the_model_flying_its_own_level5_campaign_adds_nothing(clean, tmp_path
     assert max(offsets) > 0.05                            # measured: 0.37 deg (S.18, elevator)
 
 
-
-
 # Effects in no library flown on the packaged Level 5 plan (22 maneuvers, sensor noise and biases on
 # every channel, inputs included; seed 1): (truth, what the loop must add, its label, value, the factor a
 # term makes vary (held), the axis's worst channel); measured (this machine, seed 1): value found, the

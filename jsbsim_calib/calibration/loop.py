@@ -3,9 +3,10 @@
 diagnose -> candidates -> fit -> evidence -> add -> refit, round after round, until nothing
 passes (after an add, the evidence refits its own nuisance parameters, and the change is fitted
 again on them: :meth:`Evidence.rebase`, :func:`fit_again`); the same rules judge every
-candidate on every kind of data. What differs per kind of evidence is an adapter (:class:`Evidence`): what a residual row is and its scale, how the
-residual is diagnosed, how the points or maneuvers form folds, which candidates a round
-tries and how a candidate is flown. :mod:`.closeloop` adapts trims (POH tables, flight-test
+candidate on every kind of data. What differs per kind of evidence is an adapter
+(:class:`Evidence`): what a residual row is and its scale, how the residual is diagnosed, how
+the points or maneuvers form folds, which candidates a round tries and how a candidate is
+flown. :mod:`.closeloop` adapts trims (POH tables, flight-test
 snapshots, flap climbs, G1000 segments), :mod:`.closeloop_dynamic` time histories.
 
 A candidate is a :class:`Change`: a library effect or a synthesized term (XML added, its own
@@ -551,10 +552,10 @@ def fit_again(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet, 
         start = tuple(cand.factors.items())
     trial, fitted = fit_change(ev, current, replace(ch, start=start), factors, ev.parts()[0])
     trial.close()
-    was = ", ".join(f"{k} {v:.6g}" for k, v in cand.factors.items())
+    text = lambda values: ", ".join(f"{k} {v:.6g}" for k, v in values.items())
+    cand.reason += (f"; fitted again with the evidence's nuisance parameters refitted with it: {text(cand.factors)} -> "
+                    f"{text(fitted.values)}")
     cand.factors, cand.stderr = dict(fitted.values), dict(fitted.stderr)
-    cand.reason += (f"; fitted again with the evidence's nuisance parameters refitted with it: {was} -> "
-                    + ", ".join(f"{k} {v:.6g}" for k, v in cand.factors.items()))
 
 
 def refit(ev: Evidence, rnd: int, current: Simulator, added: list[Change], factors: FactorSet, say) -> FitResult:
