@@ -236,10 +236,10 @@ class TrimEvidence:
             f"the dictionary explains as much of shuffled residuals (null test p = {rec.p_null:.3f}, "
             f"needs <= {ALPHA:g})"]
 
-    def cross_validate(self, current: Simulator, ch: Change, factors: FactorSet) -> float:
+    def cross_validate(self, current: Simulator, ch: Change, factors: FactorSet, focus=None) -> float:
         if ch.kind == "term":
             return cross_validate_synthesis(self, current, self._pending[ch.name][1], factors)
-        return cross_validate(self, current, ch, factors)
+        return cross_validate(self, current, ch, factors, self)       # a trim evidence is its own focus
 
     def synthesized(self, rnd: int, current: Simulator, diag, factors: FactorSet, start: Round) -> list[Change]:
         if not self.synthesize:

@@ -899,6 +899,7 @@ class TimeHistoryEvidence:
         self.screens: list[Screen] = []
         self._terms: list[Change] = []
         self.linear: dict[int, Linearized] = {}         # tests predicted, not flown (focused())
+        self.focus: tuple = ()                          # focused(): (factors, their values, the part)
 
     def __getstate__(self) -> dict:
         """Pickled (a task's copy): the evidence without its executor (a task runs its own work here)
@@ -931,12 +932,16 @@ class TimeHistoryEvidence:
         their flights there and one step away (k + 1 flights of the part). A pitch factor
         leaves the lateral maneuvers and the trims in a line: a fit of K_Cmq on the Level 5
         campaign flew 4 of its 20 tests (before its two more pitch pulses). The caller's trim
-        warm starts and factors are kept."""
+        warm starts and factors are kept. A copy focused on the same factors at the same values
+        over a part that holds ``part`` is its own focus (a fold's fit: :func:`.loop.focus_of`)."""
         names = list(names)
         if not names or len(part) < 2:
             return self
         start, warm = sim.factors, dict(sim.trim_cache)
         x0 = start.vector(names)
+        key = (tuple(names), x0.tobytes())
+        if self.focus[:2] == key and set(part) <= self.focus[2]:
+            return self
 
         def flown_at(x: np.ndarray) -> list[Response]:
             sim.trim_cache = dict(warm)
@@ -958,6 +963,7 @@ class TimeHistoryEvidence:
             sim.fresh()
         keep = sensitive(slopes)
         out = copy.copy(self)
+        out.focus = (*key, frozenset(part))
         out.linear = {**self.linear, **{i: Linearized(at[j], tuple(names), start.vector(names, normalized=False),
                                                        np.column_stack(slopes[j]))
                                         for j, i in enumerate(part) if j not in keep}}
@@ -1040,8 +1046,8 @@ class TimeHistoryEvidence:
     def judge(self, ch: Change, cand: Candidate, current: Simulator, factors: FactorSet) -> list[str]:
         return []
 
-    def cross_validate(self, current: Simulator, ch: Change, factors: FactorSet) -> float:
-        return loop_cross_validate(self, current, ch, factors)
+    def cross_validate(self, current: Simulator, ch: Change, factors: FactorSet, focus=None) -> float:
+        return loop_cross_validate(self, current, ch, factors, focus)
 
 
 def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects: Mapping[str, Effect] | None = None,

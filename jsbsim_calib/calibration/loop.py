@@ -2,7 +2,8 @@
 
 diagnose -> candidates -> fit -> evidence -> add -> refit, round after round, until nothing
 passes (after an add, the evidence refits its own nuisance parameters, and the change is fitted
-again on them: :meth:`Evidence.rebase`, :func:`fit_again`); the same rules judge every
+again on them: :meth:`Evidence.rebase`; a factor or an inertia alone, :func:`fit_again`, an
+effect in the refit); the same rules judge every
 candidate on every kind of data. What differs per kind of evidence is an adapter
 (:class:`Evidence`): what a residual row is and its scale, how the residual is diagnosed, how
 the points or maneuvers form folds, which candidates a round tries and how a candidate is
@@ -137,7 +138,8 @@ class Evidence(Protocol):
     def fit_options(self, what: str) -> dict: ...                    # 'candidate' or 'refit': max_nfev, prior
     def judge(self, ch: "Change", cand: "Candidate", current: Simulator, factors: FactorSet) -> list[str]: ...
     # a named change's must be cross_validate()'s sum: try_changes may run its folds ahead
-    def cross_validate(self, current: Simulator, ch: "Change", factors: FactorSet) -> float: ...
+    def cross_validate(self, current: Simulator, ch: "Change", factors: FactorSet,
+                       focus: "Evidence | None" = None) -> float: ...
 
 
 def fit_options(ev: Evidence, what: str) -> dict:
@@ -239,6 +241,7 @@ class Fitted:
     values: dict[str, float]
     stderr: dict[str, float | None]
     factors: FactorSet
+    focus: object = None             # the evidence focused on its factors at its start (:func:`focus_of`)
 
 
 def _inside(f: Factor, value: float) -> float:
@@ -255,9 +258,10 @@ def _residuals(ev: Evidence, sim: Simulator, part: Sequence[int]):
     return res
 
 
-def _fit_effect(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
-                part: Sequence[int]) -> tuple[Simulator, Fitted]:
-    """An effect's (or term's) factors fitted alone, from its start estimate where it has one."""
+def _effect_start(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
+                  part: Sequence[int]) -> tuple[Simulator, FactorSet, Evidence]:
+    """A copy of ``current`` with the effect (or term) at its fit's start (its estimate where it
+    has one), that start, and the evidence focused on its factors there (the caller closes the copy)."""
     trial = current.clone()
     try:
         trial.add_effect(ch.effect)
@@ -266,16 +270,27 @@ def _fit_effect(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet
         start = neutral.updated({k: _inside(extra[k], v) for k, v in ch.start if k in extra})
         start = _flying_start(ev, trial, neutral, start, list(extra), part) if ch.kind == "term" else start
         trial.set_factors(start)
+        return trial, start, ev.focused(trial, part, list(extra))
+    except BaseException:
+        trial.close()
+        raise
+
+
+def _fit_effect(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
+                part: Sequence[int]) -> tuple[Simulator, Fitted]:
+    """An effect's (or term's) factors fitted alone, from its start estimate where it has one."""
+    trial, start, focus = _effect_start(ev, current, ch, factors, part)
+    try:
+        extra = ch.effect.as_factors()
         opts = fit_options(ev, "candidate")
         if "prior_center" in opts:
-            opts = {**opts, "prior_center": neutral}
-        fr = fit(f"candidate {ch.name}", list(extra), start, _residuals(ev.focused(trial, part, list(extra)), trial, part),
-                 sim=trial, **opts)
+            opts = {**opts, "prior_center": factors.with_extra(extra)}
+        fr = fit(f"candidate {ch.name}", list(extra), start, _residuals(focus, trial, part), sim=trial, **opts)
         trial.set_factors(fr.final)
     except BaseException:
         trial.close()
         raise
-    return trial, Fitted({k: fr.final[k] for k in extra}, dict(fr.stderr), fr.final)
+    return trial, Fitted({k: fr.final[k] for k in extra}, dict(fr.stderr), fr.final, focus)
 
 
 def _flying_start(ev: Evidence, trial: Simulator, neutral: FactorSet, start: FactorSet, names: Sequence[str],
@@ -297,22 +312,34 @@ def _flying_start(ev: Evidence, trial: Simulator, neutral: FactorSet, start: Fac
     return start
 
 
-def _fit_factor(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
-                part: Sequence[int]) -> tuple[Simulator, Fitted]:
-    """An existing factor fitted alone, without a prior: the data say where it stands."""
+def _factor_start(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
+                  part: Sequence[int]) -> tuple[Simulator, FactorSet, Evidence]:
+    """A copy of ``current`` with an existing factor at its fit's start, that start, and the
+    evidence focused on the factor there (the caller closes the copy)."""
     trial = current.clone()
     try:
         f = factors.factor(ch.target)
         start = factors.updated({ch.target: _inside(f, factors[ch.target] + dict(ch.start).get(ch.target, 0.0))})
-        opts = {k: v for k, v in fit_options(ev, "candidate").items() if k != "prior_center"}
         trial.set_factors(start)
-        fr = fit(f"candidate {ch.name}", [ch.target], start, _residuals(ev.focused(trial, part, [ch.target]), trial, part),
-                 sim=trial, **{**opts, "prior": 0.0})
+        return trial, start, ev.focused(trial, part, [ch.target])
+    except BaseException:
+        trial.close()
+        raise
+
+
+def _fit_factor(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
+                part: Sequence[int]) -> tuple[Simulator, Fitted]:
+    """An existing factor fitted alone, without a prior: the data say where it stands."""
+    trial, start, focus = _factor_start(ev, current, ch, factors, part)
+    try:
+        opts = {k: v for k, v in fit_options(ev, "candidate").items() if k != "prior_center"}
+        fr = fit(f"candidate {ch.name}", [ch.target], start, _residuals(focus, trial, part), sim=trial,
+                 **{**opts, "prior": 0.0})
         trial.set_factors(fr.final)
     except BaseException:
         trial.close()
         raise
-    return trial, Fitted({ch.target: fr.final[ch.target]}, dict(fr.stderr), fr.final)
+    return trial, Fitted({ch.target: fr.final[ch.target]}, dict(fr.stderr), fr.final, focus)
 
 
 def _inertia_note(axis: str, scale: float) -> str:
@@ -348,6 +375,18 @@ def _fit_inertia(ev: Evidence, current: Simulator, ch: Change, factors: FactorSe
 
 
 FITS = {"effect": _fit_effect, "term": _fit_effect, "factor": _fit_factor, "inertia": _fit_inertia}
+STARTS = {"effect": _effect_start, "term": _effect_start, "factor": _factor_start}
+
+
+def focus_of(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet) -> Evidence:
+    """The evidence as the change's fit on the fitted part runs on it (:meth:`Evidence.focused`
+    at the change's start; an inertia's search: the evidence itself). Its folds are fitted on it,
+    so that they fly only the tests the change moves, as its fit did."""
+    if ch.kind not in STARTS:
+        return ev
+    trial, _, focus = STARTS[ch.kind](ev, current, ch, factors, ev.parts()[0])
+    trial.close()
+    return focus
 
 
 def fit_change(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
@@ -413,9 +452,11 @@ def breaks_reason(before: Rows, after: Rows) -> str:
            f"{after.penalty():.3g})"
 
 
-def _try(ev: Evidence, start: Round, current: Simulator, factors: FactorSet, ch: Change) -> Candidate | str:
-    """A change fitted alone on the fitted part and scored; the error where it breaks the
-    model. A task: it reads the evidence and the model, and changes neither."""
+def _try(ev: Evidence, start: Round, current: Simulator, factors: FactorSet,
+         ch: Change) -> tuple[Candidate, Evidence | None] | str:
+    """A change fitted alone on the fitted part and scored, with the evidence its fit ran on
+    where that is not the evidence itself (its folds' :func:`focus_of`); the error where it
+    breaks the model. A task: it reads the evidence and the model, and changes neither."""
     try:
         trial, fitted = fit_change(ev, current, ch, factors, ev.parts()[0])
     except CalibError as exc:
@@ -423,22 +464,23 @@ def _try(ev: Evidence, start: Round, current: Simulator, factors: FactorSet, ch:
     with trial:
         c = score(ev, start, ch, fitted, trial)
     c.reason = "; ".join([c.reason] * bool(c.reason) + ev.judge(ch, c, current, factors))
-    return c
+    return c, (fitted.focus if fitted.focus is not ev else None)
 
 
-def _task(ev: Evidence, start: Round, current: Simulator, factors: FactorSet, item) -> Candidate | str | float | None:
-    """A candidate's fit (``("fit", change)``) or one of its folds (``("fold", change, fold)``;
-    None where its fit fails: the fold is left to :func:`cross_validate`, as if not run ahead)."""
+def _task(ev: Evidence, start: Round, current: Simulator, factors: FactorSet, item):
+    """A candidate's fit (``("fit", change)``: :func:`_try`) or one of its folds (``("fold",
+    change, fold)``, on the evidence its fit runs on: :func:`focus_of`; None where that fails:
+    the fold is left to :func:`cross_validate`, as if not run ahead)."""
     if item[0] == "fit":
         return _try(ev, start, current, factors, item[1])
     try:
-        return _fold(ev, current, item[1], factors, item[2])
+        return _fold(ev, current, item[1], factors, focus_of(ev, current, item[1], factors), item[2])
     except CalibError:
         return None
 
 
 def try_changes(ev: Evidence, start: Round, current: Simulator, changes: Sequence[Change], factors: FactorSet,
-                say, ahead: dict[str, float] | None = None) -> list[Candidate]:
+                say, ahead: dict[str, float] | None = None, focus: dict[str, Evidence] | None = None) -> list[Candidate]:
     """Each change fitted alone on the fitted part and scored, as independent tasks on the
     evidence's executor (each fit starts from a fresh copy of the model: the same bits on
     any executor); one that breaks the model is rejected with the error named.
@@ -449,7 +491,10 @@ def try_changes(ev: Evidence, start: Round, current: Simulator, changes: Sequenc
     :func:`cross_validate` gives: the same tasks, added in the same order). With as many
     changes as workers they would only lengthen the batch, and they are lost where another
     change is taken (a Level 5 campaign of Cl += K aileron x qbar, pool of 2: the four folds of
-    K_da_slope, listed first, ran beside the four fits; the term was taken)."""
+    K_da_slope, listed first, ran beside the four fits; the term was taken).
+
+    ``focus``: the evidence each change's fit ran on, where it is not the evidence itself, is
+    stored here by name (its folds run on it: :func:`cross_validate`)."""
     run_ahead = (ahead is not None and ev.executor.workers > len(changes) and bool(changes)
                  and changes[0].kind != "term")
     folds = ev.folds() if run_ahead else []
@@ -463,35 +508,45 @@ def try_changes(ev: Evidence, start: Round, current: Simulator, changes: Sequenc
         if isinstance(c, str):
             say(f"round {start.number}: {ch.name}: {c}")
             continue
+        c, on = c
+        if on is not None and focus is not None:
+            focus[ch.name] = on
         tried.append(c)
         numbers = "" if c.breaks else f"BIC {c.delta_bic:+10.1f}  explains {100 * c.share:5.0f} %  "
         say(f"round {start.number}: {ch.name:34s} {numbers}{'passes the fit tests' if not c.reason else 'rejected: ' + c.reason}")
     return tried
 
 
-def _fold(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet, fold) -> float:
-    """A fold's held-out residual sum of squares, the change fitted on the rest (a task)."""
+def _fold(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet, on: Evidence, fold) -> float:
+    """A fold's held-out residual sum of squares (flown: ``ev``), the change fitted on the rest
+    (on ``on``: :func:`focus_of`). A task."""
     train, test = fold
-    trial, _ = fit_change(ev, current, ch, factors, train)
+    trial, _ = fit_change(on, current, ch, factors, train)
     with trial:
         return ev.rows(trial, test).rss()
 
 
-def cross_validate(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet) -> float:
+def cross_validate(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
+                   focus: Evidence | None = None) -> float:
     """Residual sum of squares of every fold predicted by a fit of the change that did not see
-    it (the evidence's folds, independent tasks on its executor); NaN with fewer than two folds."""
+    it (the evidence's folds, independent tasks on its executor); NaN with fewer than two folds.
+    The folds' fits run on the evidence as the change's own fit did (``focus``, where the
+    caller has it from that fit: :func:`focus_of` gives the same): on a Level 5 campaign of
+    Cl += K aileron x qbar each fold flew 48 of its 105 flights to choose its own tests."""
     folds = ev.folds()
     if len(folds) < 2:
         return math.nan
-    return sum(ev.executor.map(partial(_fold, ev, current, ch, factors), folds), 0.0)
+    on = focus if focus is not None else focus_of(ev, current, ch, factors)
+    return sum(ev.executor.map(partial(_fold, ev, current, ch, factors, on), folds), 0.0)
 
 
 def best_out_of_sample(ev: Evidence, tried: list[Candidate], current: Simulator, changes: Mapping[str, Change],
-                       factors: FactorSet, say, ahead: Mapping[str, float] | None = None) -> Candidate | None:
+                       factors: FactorSet, say, ahead: Mapping[str, float] | None = None,
+                       focus: Mapping[str, Evidence] | None = None) -> Candidate | None:
     """Of the candidates that passed the fit tests, the one that explains the most of the
     structured residual and pays off in cross-validation; a synthesized term counts
     :data:`TERM_MARGIN` less, and ties keep the order of the BIC change (``ahead``: sums already
-    computed, by name: :func:`try_changes`).
+    computed, by name, and the evidence each fit ran on: :func:`try_changes`).
 
     The BIC change weighs each channel by its noise, and a stand-in that moves many quiet rows a
     little can carry more of it than the change that removes the structure: a library effect at
@@ -507,7 +562,7 @@ def best_out_of_sample(ev: Evidence, tried: list[Candidate], current: Simulator,
     for c in sorted((c for c in tried if not c.reason), key=lambda c: (-explains(c), c.delta_bic)):
         cv0 = ev.rows(current, everything).rss() if cv0 is None else cv0     # the model's: the same for each
         cv1 = (ahead or {}).get(c.effect)
-        cv1 = ev.cross_validate(current, changes[c.effect], factors) if cv1 is None else cv1
+        cv1 = ev.cross_validate(current, changes[c.effect], factors, (focus or {}).get(c.effect)) if cv1 is None else cv1
         c.cv = (cv0, cv1)
         if pays_off_out_of_sample(cv0, cv1):
             return c
@@ -543,7 +598,11 @@ def fit_again(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet, 
     change): what they took up of the change while fitted without it is the change's again.
     The candidate keeps its scores; its values and standard errors are the new fit's, and its
     reason says so. Traced on Iyy x1.6 (Level 5, seed 3): its pitch-rate rows had their
-    minimum at 1.53 with the offsets of the model without it, at 1.56-1.57 with them refitted."""
+    minimum at 1.53 with the offsets of the model without it, at 1.56-1.57 with them refitted.
+    The loop calls it for a factor or an inertia: an effect's (or a term's) own factors are
+    fitted again in the refit that follows (:func:`refit`), where fitting them alone first
+    flew 115 maneuvers on one worker for a start the refit does not need (7 s of a Level 5
+    campaign of Cl += K aileron x qbar on a pool of 2)."""
     if ch.kind == "inertia":
         start = ((ch.target, cand.factors[f"{ch.target}_scale"] - 1.0),)
     elif ch.kind == "factor":
@@ -572,7 +631,8 @@ def refit(ev: Evidence, rnd: int, current: Simulator, added: list[Change], facto
     opts = fit_options(ev, "refit")
     if "prior_center" in opts:
         opts = {**opts, "prior_center": factors}
-    return fit(f"refit after {added[-1].name}", names, factors, _residuals(ev, current, fitp), sim=current,
+    focus = ev.focused(current, fitp, names)
+    return fit(f"refit after {added[-1].name}", names, factors, _residuals(focus, current, fitp), sim=current,
                executor=ev.executor, **opts)
 
 
@@ -602,14 +662,15 @@ def _round(ev: Evidence, rnd: int, current: Simulator, factors: FactorSet, diag,
     named = ev.named(rnd, current, diag, factors)
     by_name = {c.name: c for c in named}
     ahead: dict[str, float] = {}
-    tried = try_changes(ev, start, current, named, factors, say, ahead)
-    best = best_out_of_sample(ev, tried, current, by_name, factors, say, ahead)
+    focus: dict[str, Evidence] = {}
+    tried = try_changes(ev, start, current, named, factors, say, ahead, focus)
+    best = best_out_of_sample(ev, tried, current, by_name, factors, say, ahead, focus)
     if best is None:
         terms = ev.synthesized(rnd, current, diag, factors, start)
         by_name.update({c.name: c for c in terms})
-        more = try_changes(ev, start, current, terms, factors, say)
+        more = try_changes(ev, start, current, terms, factors, say, focus=focus)
         tried += more
-        best = best_out_of_sample(ev, more, current, by_name, factors, say)
+        best = best_out_of_sample(ev, more, current, by_name, factors, say, focus=focus)
     if best is not None:
         best.accepted = True
         best.reason = (f"accepted: explains the most of those that pass; out of sample {best.cv[0]:.3g} -> "
@@ -644,7 +705,7 @@ def run_loop(ev: Evidence, sim: Simulator, *, max_effects: int = MAX_EFFECTS, di
                 break
             ch = changes[best.effect]
             trial, now = add(current, ch, factors, best)
-            if ev.rebase(trial):
+            if ev.rebase(trial) and ch.effect is None:       # an effect's values: the refit's
                 trial.close()
                 fit_again(ev, current, ch, factors, best)
                 trial, now = add(current, ch, factors, best)
