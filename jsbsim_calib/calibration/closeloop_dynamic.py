@@ -84,7 +84,7 @@ from .effects import LIBRARY_DIR, Effect, library
 from .equation_error import Column, Ranked, effect_columns, equation_error, explained_rows, factor_columns, \
     inertia_columns, rank, term_columns
 from .fit import FitResult
-from .loop import (MATERIAL, MAX_EFFECTS, LoopResult, NOISE_FLOOR, RULES as LOOP_RULES, Candidate, Change, Round, Rows,
+from .loop import (CANDIDATE_LEGS, MATERIAL, MAX_EFFECTS, LoopResult, NOISE_FLOOR, RULES as LOOP_RULES, Candidate, Change, Round, Rows,
                    cross_validate as loop_cross_validate, run_loop)
 from .synthesis import EFFECT_PREFIX, Linearization, Selection, dictionary, select, term_effect
 from .terms import SAME_FORM
@@ -212,27 +212,40 @@ def fly_all(sim: Simulator, tests: Sequence[RecordedTest]) -> list[Response]:
     return [fly_response(sim, t) for t in tests]
 
 
-FLIGHT_CHUNKS = 4            # the loop's own flights (offsets, weights, before and after): chunks of tests
+CHUNK_TESTS = 3              # the loop's flights: tasks of this many tests each
 
 
-def _fly_chunk(sim: Simulator, tests: Sequence[RecordedTest]) -> list[Response]:
-    with sim.clone() as fresh:
-        return fly_all(fresh, tests)
+def _fly_fresh(sim: Simulator, warm: dict, tests: Sequence[RecordedTest]) -> tuple[list[Response], dict]:
+    """Tests flown in turn from a JSBSim with no history and the trim warm starts ``warm`` (a
+    task): their responses and the warm starts they leave."""
+    sim.trim_cache = dict(warm)
+    sim.fresh()
+    return fly_all(sim, tests), sim.trim_cache
 
 
 def fly_spread(sim: Simulator, tests: Sequence[RecordedTest], executor: Executor = SERIAL) -> list[Response]:
-    """Every test flown, in :data:`FLIGHT_CHUNKS` contiguous chunks, each on a fresh copy of the
-    model, as independent tasks on ``executor``. A flight's last bits depend on the flights the
-    model made before it (the trim starts from the state the last one left in JSBSim: 8e-14 in
-    the scaled residuals), so the chunks, not the executor, fix that history: the same bits on
-    any executor and any number of workers."""
+    """Every test flown on the model as ``sim`` stands, in contiguous chunks of
+    :data:`CHUNK_TESTS`, each from a JSBSim with no history and the trim warm starts ``sim``
+    holds, as independent tasks on ``executor`` (a pool flies one evaluation of the evidence
+    on every worker). A flight's last bits depend on the flights the model made before it (the
+    trim starts from the state the last one left in JSBSim: 8e-14 in the scaled residuals), so
+    the chunks, not the executor, fix that history: the same bits on any executor and any
+    number of workers. ``sim`` is left with no history and with the warm starts the chunks
+    left, merged in their order."""
     tests = list(tests)
     if not tests:
         return []
-    k = min(FLIGHT_CHUNKS, len(tests))
-    cuts = [len(tests) * i // k for i in range(k + 1)]
-    flown = executor.map(partial(_fly_chunk, sim), [tests[a:b] for a, b in zip(cuts, cuts[1:])])
-    return [x for part in flown for x in part]
+    warm = dict(sim.trim_cache)
+    chunks = [tests[a:a + CHUNK_TESTS] for a in range(0, len(tests), CHUNK_TESTS)]
+    if executor.workers > 1 and len(chunks) > 1:
+        done = executor.map(partial(_fly_fresh, sim, warm), chunks)
+    else:
+        done = [_fly_fresh(sim, warm, c) for c in chunks]
+    sim.trim_cache = warm
+    for _, left in done:
+        sim.trim_cache.update(left)
+    sim.fresh()
+    return [x for flown, _ in done for x in flown]
 
 
 def _stack(responses: Sequence[Response]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -921,7 +934,7 @@ class TimeHistoryEvidence:
     def _flown(self, sim: Simulator, part) -> list[Response]:
         """The tests of ``part`` on the model as ``sim`` stands, projected: flown, or predicted
         to first order where :meth:`focused` linearized them."""
-        flights = iter(fly_all(sim, [self.tests[i] for i in part if i not in self.linear]))
+        flights = iter(fly_spread(sim, [self.tests[i] for i in part if i not in self.linear], self.executor))
         return [self.linear[i].response(sim.factors) if i in self.linear else self._projected(i, next(flights))
                 for i in part]
 
@@ -989,7 +1002,7 @@ class TimeHistoryEvidence:
         return np.concatenate(blocks) if blocks else np.zeros((0, 0))
 
     def diagnose(self, sim: Simulator) -> dict[str, ChannelDiagnosis]:
-        return diagnose_responses([self._projected(i, x) for i, x in enumerate(fly_all(sim, self.tests))])
+        return diagnose_responses([self._projected(i, x) for i, x in enumerate(fly_spread(sim, self.tests, self.executor))])
 
     def noise(self, d: ChannelDiagnosis) -> float:
         return noise_in_scales(d)
@@ -1040,7 +1053,7 @@ class TimeHistoryEvidence:
         return [f for f in step_factors(f"{ch.axis} dynamics") if f not in ch.effect.same_as]
 
     def fit_options(self, what: str) -> dict:
-        return {"prior": STEP_PRIOR, "prior_center": None,
+        return {"prior": STEP_PRIOR, "prior_center": None, "legs": CANDIDATE_LEGS, "restarts": 0,
                 "max_nfev": CANDIDATE_NFEV if what == "candidate" else REFIT_NFEV}
 
     def judge(self, ch: Change, cand: Candidate, current: Simulator, factors: FactorSet) -> list[str]:

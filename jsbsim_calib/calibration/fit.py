@@ -289,7 +289,8 @@ def _jacobian(problem: FitProblem, executor: Executor, x: np.ndarray, f0: np.nda
 def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[[FactorSet], tuple[np.ndarray, list[str]]],
         *, sim: Simulator, max_nfev: int | None = MAX_NFEV, progress: Callable[[str], None] | None = None,
         ftol: float = FIT_TOL, prior: float = PRIOR_WEIGHT, prior_center: FactorSet | None = None,
-        legs: Sequence[tuple[float, float]] | None = None, executor: Executor = SERIAL) -> FitResult:
+        legs: Sequence[tuple[float, float]] | None = None, restarts: int = MAX_RESTARTS,
+        executor: Executor = SERIAL) -> FitResult:
     """Least-squares fit of ``names`` (others held at ``start``).
 
     ``prior`` adds the residuals ``prior * (x - x_center)`` (x = normalized factor, centre
@@ -302,7 +303,9 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     path of decreasing priors, then a polish with a small finite-difference step. A leg
     restarts the optimizer from its result (a fresh damping: it can stop on a kink of the
     trims, whose tables interpolate linearly) until a restart gains less than
-    :data:`RESTART_GAIN` of the cost. ``legs`` replaces :data:`LEGS` (a fit of a few
+    :data:`RESTART_GAIN` of the cost or takes no step (a restart of it would repeat it: the
+    refit of a Level 5 campaign of Cm += K elevator x qbar spent 11 of its 25 s so), at most
+    ``restarts`` times. ``legs`` replaces :data:`LEGS` (a fit of a few
     well-identified factors needs no path of priors). Every evaluation is a pure function of
     its point and of the warm starts of the last accepted point (:class:`FitProblem`): the
     Jacobian's columns run on ``executor`` and give the same bits there.
@@ -368,7 +371,7 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
     for weight, step in (legs if legs is not None else LEGS if prior else LEGS[-2:]):   # no prior: no path
         state.update(weight=weight, step=step)
         cost = math.inf
-        for _ in range(1 + MAX_RESTARTS):
+        for _ in range(1 + restarts):
             left = None if max_nfev is None else max_nfev - nfev
             if left is not None and left <= 0:
                 break
@@ -376,9 +379,9 @@ def fit(stage: str, names: Sequence[str], start: FactorSet, residuals: Callable[
                                          max_nfev=left, callback=callback, on_trial=on_trial, trials=trials,
                                          batch=executor.workers)
             nfev += res.nfev
-            gained = res.cost < (1.0 - RESTART_GAIN) * cost
+            gained = res.cost < (1.0 - RESTART_GAIN) * cost and not np.array_equal(res.x, x)
             x, cost = res.x, min(cost, float(res.cost))
-            if not gained:
+            if not gained:             # a run that took no step would be repeated bit for bit
                 break
     final = start.with_vector(names, x)
     r_final = counted(problem.evaluate(x, state["warm"], 1.0)).residuals    # leaves the simulator at the final factors

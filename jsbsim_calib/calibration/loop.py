@@ -2,8 +2,7 @@
 
 diagnose -> candidates -> fit -> evidence -> add -> refit, round after round, until nothing
 passes (after an add, the evidence refits its own nuisance parameters, and the change is fitted
-again on them: :meth:`Evidence.rebase`; a factor or an inertia alone, :func:`fit_again`, an
-effect in the refit); the same rules judge every
+again on them: :meth:`Evidence.rebase`, :func:`fit_again`); the same rules judge every
 candidate on every kind of data. What differs per kind of evidence is an adapter
 (:class:`Evidence`): what a residual row is and its scale, how the residual is diagnosed, how
 the points or maneuvers form folds, which candidates a round tries and how a candidate is
@@ -598,11 +597,7 @@ def fit_again(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet, 
     change): what they took up of the change while fitted without it is the change's again.
     The candidate keeps its scores; its values and standard errors are the new fit's, and its
     reason says so. Traced on Iyy x1.6 (Level 5, seed 3): its pitch-rate rows had their
-    minimum at 1.53 with the offsets of the model without it, at 1.56-1.57 with them refitted.
-    The loop calls it for a factor or an inertia: an effect's (or a term's) own factors are
-    fitted again in the refit that follows (:func:`refit`), where fitting them alone first
-    flew 115 maneuvers on one worker for a start the refit does not need (7 s of a Level 5
-    campaign of Cl += K aileron x qbar on a pool of 2)."""
+    minimum at 1.53 with the offsets of the model without it, at 1.56-1.57 with them refitted."""
     if ch.kind == "inertia":
         start = ((ch.target, cand.factors[f"{ch.target}_scale"] - 1.0),)
     elif ch.kind == "factor":
@@ -705,7 +700,7 @@ def run_loop(ev: Evidence, sim: Simulator, *, max_effects: int = MAX_EFFECTS, di
                 break
             ch = changes[best.effect]
             trial, now = add(current, ch, factors, best)
-            if ev.rebase(trial) and ch.effect is None:       # an effect's values: the refit's
+            if ev.rebase(trial):
                 trial.close()
                 fit_again(ev, current, ch, factors, best)
                 trial, now = add(current, ch, factors, best)
