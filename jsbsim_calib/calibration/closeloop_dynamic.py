@@ -201,7 +201,7 @@ class Response:
 def fly_response(sim: Simulator, test: RecordedTest) -> Response:
     chans = response_channels(test)
     try:
-        tr = fly(sim, test.maneuver)
+        tr = fly(sim, test.maneuver, at=test.time_s)
     except CalibError as exc:
         return Response(test, chans, np.full(len(test.time_s) * len(chans), FAIL_RESIDUAL), None, str(exc))
     r, _ = test.residuals(tr, chans)

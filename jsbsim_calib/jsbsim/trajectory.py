@@ -247,8 +247,24 @@ def _trim(sim, m: Maneuver) -> TrimResult:
     return t
 
 
-def fly(sim, m: Maneuver, *, rate_hz: float = RATE_HZ) -> Trajectory:
-    """Trim at the maneuver's start and fly it in JSBSim; every frame from maneuver time 0."""
+def _frames_about(times_s, n_settle: int, n: int, dt: float) -> np.ndarray:
+    """Which of a flight's ``n`` frames :meth:`Trajectory.at` needs at ``times_s`` (maneuver
+    times): the two about each time (and a third where the time falls on a frame, for the
+    clock's round-off), and the first and last of the maneuver."""
+    keep = np.zeros(n, bool)
+    f = np.asarray(times_s, float) / dt
+    k = np.floor(f).astype(int)
+    on = np.abs(f - np.round(f)) < 1e-6
+    for idx in (k, k + 1, np.where(on, np.round(f).astype(int) - 1, k), np.where(on, np.round(f).astype(int) + 1, k)):
+        keep[np.clip(n_settle + idx, n_settle, n - 1)] = True
+    keep[[n_settle, n - 1]] = True
+    return keep
+
+
+def fly(sim, m: Maneuver, *, rate_hz: float = RATE_HZ, at=None) -> Trajectory:
+    """Trim at the maneuver's start and fly it in JSBSim; every frame from maneuver time 0, or
+    with ``at`` (maneuver times) only those :meth:`Trajectory.at` needs there (the same values
+    there, bit for bit; a recorded test sampled at 10 Hz reads one frame in five)."""
     trim = _trim(sim, m)
     spec = _spec(sim, m, trim, rate_hz, with_values=True)
     box = sim.sandbox
@@ -270,13 +286,16 @@ def fly(sim, m: Maneuver, *, rate_hz: float = RATE_HZ) -> Trajectory:
     dt = fdm.get_delta_t()
     end = SETTLE_S + spec.duration_s + 0.99 * dt       # FGScript's end: the script's plus 0.99 frame
     inputs = RampPlayer(spec.ramps, spec.dt_s, end, lambda p: _node(pm, p, m))
+    keep = np.ones(n, bool) if at is None else _frames_about(at, n_settle, n, dt)
+    keep[:n_settle] = False
     for i in range(n):
         time[i] = tnode.get_double_value()
-        data[i] = [node.get_double_value() * k for node, k in nodes]
+        if keep[i]:
+            data[i] = [node.get_double_value() * k for node, k in nodes]
         if i < n - 1:
             inputs(time[i] + dt)        # FGFDMExec::Run advances the clock, then plays the script
             fdm.run()
-    data, time = data[n_settle:], time[n_settle:] - time[n_settle]
+    data, time = data[keep], time[keep] - time[n_settle]
     if not np.all(np.isfinite(data)):
         raise ModelError(f"maneuver {m.name}: the flight produced non-finite values")
     channels = {k: data[:, j] for j, k in enumerate(RECORD)}
