@@ -1068,8 +1068,8 @@ def close_loop_dynamic(sim: Simulator, tests: Sequence[RecordedTest], *, effects
                        executor: Executor = SERIAL) -> CloseLoopDynamicResult:
     """Close the loop on recorded maneuvers (see the module doc). ``sim`` is left unchanged; the
     result holds the aircraft with the added effects (its file and factors). ``executor``: where
-    the candidates' fits, the cross-validation folds and the refits' Jacobians run (the same
-    bits on any)."""
+    the candidates' fits, the cross-validation folds, the refits' Jacobians and, in chunks of
+    maneuvers, every evaluation made in this process run (the same bits on any: :func:`fly_spread`)."""
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     tests = list(tests)
