@@ -275,23 +275,6 @@ def _effect_start(ev: Evidence, current: Simulator, ch: Change, factors: FactorS
         raise
 
 
-def _fit_effect(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
-                part: Sequence[int]) -> tuple[Simulator, Fitted]:
-    """An effect's (or term's) factors fitted alone, from its start estimate where it has one."""
-    trial, start, focus = _effect_start(ev, current, ch, factors, part)
-    try:
-        extra = ch.effect.as_factors()
-        opts = fit_options(ev, "candidate")
-        if "prior_center" in opts:
-            opts = {**opts, "prior_center": factors.with_extra(extra)}
-        fr = fit(f"candidate {ch.name}", list(extra), start, _residuals(focus, trial, part), sim=trial, **opts)
-        trial.set_factors(fr.final)
-    except BaseException:
-        trial.close()
-        raise
-    return trial, Fitted({k: fr.final[k] for k in extra}, dict(fr.stderr), fr.final, focus)
-
-
 def _flying_start(ev: Evidence, trial: Simulator, neutral: FactorSet, start: FactorSet, names: Sequence[str],
                   part: Sequence[int]) -> FactorSet:
     """A term's linearized start, halved toward neutral (at most :data:`START_HALVINGS` times)
@@ -326,19 +309,27 @@ def _factor_start(ev: Evidence, current: Simulator, ch: Change, factors: FactorS
         raise
 
 
-def _fit_factor(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
-                part: Sequence[int]) -> tuple[Simulator, Fitted]:
-    """An existing factor fitted alone, without a prior: the data say where it stands."""
-    trial, start, focus = _factor_start(ev, current, ch, factors, part)
+STARTS = {"effect": _effect_start, "term": _effect_start, "factor": _factor_start}
+
+
+def _fit_factors(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet,
+                 part: Sequence[int]) -> tuple[Simulator, Fitted]:
+    """An effect's (or term's) factors fitted alone from its start (:data:`STARTS`), with the
+    evidence's prior about neutral; an existing factor without a prior: the data say where it
+    stands."""
+    trial, start, focus = STARTS[ch.kind](ev, current, ch, factors, part)
     try:
-        opts = {k: v for k, v in fit_options(ev, "candidate").items() if k != "prior_center"}
-        fr = fit(f"candidate {ch.name}", [ch.target], start, _residuals(focus, trial, part), sim=trial,
-                 **{**opts, "prior": 0.0})
+        names, opts = ch.labels(), fit_options(ev, "candidate")
+        if ch.kind == "factor":
+            opts = {**{k: v for k, v in opts.items() if k != "prior_center"}, "prior": 0.0}
+        elif "prior_center" in opts:
+            opts = {**opts, "prior_center": factors.with_extra(ch.effect.as_factors())}
+        fr = fit(f"candidate {ch.name}", names, start, _residuals(focus, trial, part), sim=trial, **opts)
         trial.set_factors(fr.final)
     except BaseException:
         trial.close()
         raise
-    return trial, Fitted({ch.target: fr.final[ch.target]}, dict(fr.stderr), fr.final, focus)
+    return trial, Fitted({k: fr.final[k] for k in names}, dict(fr.stderr), fr.final, focus)
 
 
 def _inertia_note(axis: str, scale: float) -> str:
@@ -373,8 +364,7 @@ def _fit_inertia(ev: Evidence, current: Simulator, ch: Change, factors: FactorSe
     return trial, Fitted({f"{ch.target}_scale": s}, {}, factors)
 
 
-FITS = {"effect": _fit_effect, "term": _fit_effect, "factor": _fit_factor, "inertia": _fit_inertia}
-STARTS = {"effect": _effect_start, "term": _effect_start, "factor": _factor_start}
+FITS = {"effect": _fit_factors, "term": _fit_factors, "factor": _fit_factors, "inertia": _fit_inertia}
 
 
 def focus_of(ev: Evidence, current: Simulator, ch: Change, factors: FactorSet) -> Evidence:
