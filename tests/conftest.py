@@ -83,15 +83,20 @@ def synthetic_poh():
     return _synthetic_poh
 
 
-# The longest tests (40-190 s each on 2 cores) start first: a long test that starts last leaves
-# the other worker idle at the end (longest-first scheduling; the order is the same on every
-# worker, as pytest-xdist requires).
-LONGEST_FIRST = ("test_main_job_rewrites_the_committed_c172_byte_for_byte",
+# The longest tests (30-130 s each on 2 cores, longest first, measured on a fresh clone on
+# 2026-11-28) start first: a long test that starts last leaves the other worker idle at the end
+# (longest-first scheduling; the order is the same on every worker, as pytest-xdist requires).
+LONGEST_FIRST = ("test_an_undeclared_effect_is_found_on_the_level5_campaign",       # four of 93-126 s
+                 "test_main_job_rewrites_the_committed_c172_byte_for_byte",
                  "test_real_c172_trims_without_pfactor_step_find_the_yaw_effect",
-                 "test_hand_edits_survive_calibrate_and_generate",
                  "test_stage2a_flap_folds_refit_only_the_steps_that_use_them",
+                 "test_candidates_folds_and_refit_on_a_pool_give_the_serial_bits",
                  "test_the_plan_aims_at_the_loosest_factors_and_beats_random_level5_maneuvers",
-                 "test_sr20_steady_fit_from_a_perturbed_start_lands_on_the_committed_factors")
+                 "test_sr20_steady_fit_from_a_perturbed_start_lands_on_the_committed_factors",
+                 "test_stage_2b_alone_starts_where_the_main_job_did_and_rewrites_its_bytes",
+                 "test_hand_edits_survive_calibrate_and_generate",
+                 "test_the_model_passes_its_own_level5_flight_test_at_every_seed",
+                 "test_a_pair_of_undeclared_effects_is_found")
 
 
 def pytest_collection_modifyitems(session, config, items):

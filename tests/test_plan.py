@@ -1,5 +1,7 @@
 """``jsbsim-calib plan``: designed inputs, the proposal on the committed C172 and the flight card
 (real JSBSim; the proposal is flown through the packaged synthesis and JSBSim's own runner)."""
+import fcntl
+import json
 import math
 import re
 import subprocess
@@ -74,13 +76,23 @@ def test_a_written_plan_reads_back_to_the_same_maneuvers(tmp_path):
 
 # --------------------------------------------------------------------------- the proposal on the committed C172
 @pytest.fixture(scope="module")
-def planned(tmp_path_factory):
-    """``plan c172`` on the committed aircraft (the data in hand: its flight-test results table)."""
-    out = tmp_path_factory.mktemp("plan")
-    (out / "flight_card_P_99_phugoid.png").write_bytes(b"an earlier card's figure")
-    before = sorted(p.name for p in (REPO / "aircraft" / "c172").iterdir())
-    code = main(["--root", str(REPO), "--quiet", "plan", "c172", "--out", str(out)])
-    after = sorted(p.name for p in (REPO / "aircraft" / "c172").iterdir())
+def planned(tmp_path_factory, worker_id):
+    """``plan c172`` on the committed aircraft (the data in hand: its flight-test results table),
+    made once for all the suite's workers (35-45 s each): the first to ask writes it into their
+    shared temporary folder under a lock, the others read it there."""
+    base = tmp_path_factory.getbasetemp()
+    shared = base.parent if worker_id != "master" else base
+    out, record = shared / "plan-c172", shared / "plan-c172.json"
+    with open(shared / "plan-c172.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not record.is_file():
+            out.mkdir(exist_ok=True)
+            (out / "flight_card_P_99_phugoid.png").write_bytes(b"an earlier card's figure")
+            before = sorted(p.name for p in (REPO / "aircraft" / "c172").iterdir())
+            code = main(["--root", str(REPO), "--quiet", "plan", "c172", "--out", str(out)])
+            after = sorted(p.name for p in (REPO / "aircraft" / "c172").iterdir())
+            record.write_text(json.dumps([code, before, after]))
+        code, before, after = json.loads(record.read_text())
     return code, out, before, after
 
 
