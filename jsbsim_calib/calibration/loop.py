@@ -240,7 +240,7 @@ class Fitted:
     values: dict[str, float]
     stderr: dict[str, float | None]
     factors: FactorSet
-    focus: object = None             # the evidence focused on its factors at its start (:func:`focus_of`)
+    focus: Evidence | None = None    # the evidence focused on its factors at its start (:func:`focus_of`)
 
 
 def _inside(f: Factor, value: float) -> float:

@@ -253,9 +253,9 @@ def _frames_about(times_s, n_settle: int, n: int, dt: float) -> np.ndarray:
     clock's round-off), and the first and last of the maneuver."""
     keep = np.zeros(n, bool)
     f = np.asarray(times_s, float) / dt
-    k = np.floor(f).astype(int)
-    on = np.abs(f - np.round(f)) < 1e-6
-    for idx in (k, k + 1, np.where(on, np.round(f).astype(int) - 1, k), np.where(on, np.round(f).astype(int) + 1, k)):
+    k, r = np.floor(f).astype(int), np.round(f)
+    on = r[np.abs(f - r) < 1e-6].astype(int)
+    for idx in (k, k + 1, on - 1, on + 1):
         keep[np.clip(n_settle + idx, n_settle, n - 1)] = True
     keep[[n_settle, n - 1]] = True
     return keep
@@ -264,7 +264,7 @@ def _frames_about(times_s, n_settle: int, n: int, dt: float) -> np.ndarray:
 def fly(sim, m: Maneuver, *, rate_hz: float = RATE_HZ, at=None) -> Trajectory:
     """Trim at the maneuver's start and fly it in JSBSim; every frame from maneuver time 0, or
     with ``at`` (maneuver times) only those :meth:`Trajectory.at` needs there (the same values
-    there, bit for bit; a recorded test sampled at 10 Hz reads one frame in five)."""
+    there, bit for bit; a recorded test sampled at 10 Hz on 60 Hz frames reads half of them)."""
     trim = _trim(sim, m)
     spec = _spec(sim, m, trim, rate_hz, with_values=True)
     box = sim.sandbox
