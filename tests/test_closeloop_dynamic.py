@@ -24,11 +24,12 @@ import pytest
 from lxml import etree
 
 from jsbsim_calib.calibration.loop import MATERIAL, MIN_EVIDENCE, MIN_EXPLAINED, Candidate, Change, \
-    evidence_failures, fit_again, pays_off_out_of_sample
+    evidence_failures, fit_again, pays_off_out_of_sample, run_loop
 from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, TimeHistoryEvidence, acts_on,
                                                         close_loop_dynamic, check_tests, companion_factors,
-                                                        cross_validate, diagnose_responses, dynamic_library,
-                                                        effect_axis, excites, fly_all, noise_in_scales, projected)
+                                                        cross_validate, default_effects, diagnose_responses,
+                                                        dynamic_library, effect_axis, excites, fly_all,
+                                                        noise_in_scales, projected, screen_order)
 from jsbsim_calib.data.flighttest import load_control_travel
 from jsbsim_calib.evaluation.evaluate_dynamic import CHANNEL_SCALES, FAIL_RESIDUAL, load_recorded_tests
 from jsbsim_calib.core.errors import InputError
@@ -187,6 +188,24 @@ def test_a_yaw_due_to_roll_rate_is_found_and_its_coefficient_recovered(clean, cn
     assert "yaw" in {d.axis for d in res.diagnosis_before.values() if d.structured}
     assert not res.unexplained(), [(u.metric, u.reason) for u in res.unexplained()]
     json.dumps(res.to_json(), allow_nan=False)
+
+
+@pytest.mark.slow
+def test_a_round_screens_the_next_structured_axis_when_the_first_yields_nothing(clean, cn_p_records):
+    """The yaw due to roll rate of (a), with roll made the most structured axis of round 1 (as
+    the product with the slipstream's swirl on left it on a Level 5 campaign: roll 0.86 of its
+    scale beyond noise, yaw 0.83): the roll screen's candidates do not pass, and the round
+    then screens yaw and adds the effect. Before, the round ended after the roll screen and
+    the loop added nothing."""
+    ev = TimeHistoryEvidence(load_recorded_tests(cn_p_records), default_effects())
+    diag = dict(ev.diagnose(clean))
+    top = max(d.beyond / d.scale for d in diag.values() if d.structured)
+    diag["p_deg_s"] = replace(diag["p_deg_s"], structured=True, beyond=2 * top * diag["p_deg_s"].scale)
+    assert screen_order(diag)[:2] == ("roll", "yaw")
+    run = run_loop(ev, clean, max_effects=1, diagnosis=diag)
+    assert [s.axes for s in ev.screens] == [("roll",), ("yaw",)]
+    assert run.added_names == ["yaw_due_to_roll_rate"], [(c.effect, c.round, c.reason) for c in run.candidates]
+    assert any(c.axis == "roll" for c in run.candidates if not c.accepted)
 
 
 def test_an_accepted_change_is_fitted_again_from_its_values(clean, cn_p_records):

@@ -251,6 +251,9 @@ class TrimEvidence:
         self._pending[ch.name] = (rec, lin, ch)
         return [ch]
 
+    def unscreened(self, rnd: int, diag) -> bool:
+        return False                 # named() offers the whole library at once
+
 
 def close_loop(sim: Simulator, ds: Dataset, *, effects: dict[str, Effect] | None = None,
                max_effects: int = MAX_EFFECTS, refit_companions: bool = True, synthesize: bool = True,

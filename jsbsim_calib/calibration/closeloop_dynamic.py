@@ -23,7 +23,9 @@ flight-test or synthetic time histories, format 1 through :func:`jsbsim_calib.ev
    flown with the strongest single term not of a factor's form (a control power or a damping
    that varies with a state, an effect in no library); the sparse selection of terms (one
    synthesized effect; a single term of a factor's form is that factor) is flown only when none
-   of those passes. Each finalist
+   of those passes. When nothing of the axis passes, the round screens the next structured
+   axis (:func:`screen_order`): a yaw effect also rolls the aircraft, and may leave roll a
+   little more structured than yaw. Each finalist
    (:class:`Change`: an effect or term added, a factor refitted alone, an inertia scaled)
    is fitted alone on all the tests (residuals
    (model - data)/scale at every recorded sample of every response channel; the fit flies the
@@ -501,14 +503,16 @@ def _columns(current: Simulator, lib: Mapping[str, Effect], axes: Sequence[str])
     return term_columns(terms) + factor_columns(current.factors, factors) + effect_columns(effects) + inertia, effects
 
 
-def primary_axis(diag: Mapping[str, ChannelDiagnosis]) -> str:
-    """The axis whose channels are most structured (RMS beyond noise, in scales): a missing
-    effect shows most on its own axis, and a round works on one axis (the next round on the
-    next, once this one is explained)."""
+def screen_order(diag: Mapping[str, ChannelDiagnosis]) -> tuple[str, ...]:
+    """The structured axes, most structured first (RMS beyond noise, in scales, of the axis's
+    most structured channel): a missing effect shows most on its own axis, and a screen works
+    on one axis. A round screens the next axis when the one before yields nothing: a yaw
+    effect that also rolls the aircraft may leave roll a little more structured than yaw."""
     def beyond(d: ChannelDiagnosis) -> float:
         b = d.beyond / d.scale
         return b if math.isfinite(b) else 0.0
-    return max((d for d in diag.values() if d.structured), key=beyond).axis
+    ranked = sorted((d for d in diag.values() if d.structured), key=beyond, reverse=True)
+    return tuple(dict.fromkeys(d.axis for d in ranked))
 
 
 def _on_axes(lin: Linearization, ee_axes: Sequence[str]) -> Linearization:
@@ -547,14 +551,14 @@ class Screen:
 
 
 def screen(rnd: int, current: Simulator, lib: Mapping[str, Effect], tests,
-           diag) -> tuple[Screen, list[Change], list[Change]]:
-    """Rank every candidate of the structured axes by equation error (module
+           axis: str) -> tuple[Screen, list[Change], list[Change]]:
+    """Rank every candidate of a structured axis by equation error (module
     :mod:`.equation_error`), then keep the finalists to fly: first the :data:`FINALISTS`
     strongest named candidates (effects, factors, inertias), with the strongest single term
     (:func:`_top_term`); then, if none of those passes, the sparse selection of dictionary terms
     as one synthesized effect (a term of the same form as a factor is that factor)."""
     t0 = time.perf_counter()
-    axes = (primary_axis(diag),)
+    axes = (axis,)
     cols, effects = _columns(current, lib, axes)
     ee_axes = tuple(dict.fromkeys(x for a in axes for x in EE_AXES_OF[a]))
     lin = _on_axes(equation_error(current, tests, cols, effects), ee_axes)
@@ -898,7 +902,8 @@ class TimeHistoryEvidence:
     """Recorded maneuvers as evidence for the loop (:mod:`.loop`): a row per response channel
     and recorded sample, (model - data)/scale; every maneuver fitted, cross-validation over
     folds of whole maneuvers; the candidates: the finalists of the equation-error screen of the
-    most structured axis (:func:`screen`), its synthesized terms when no named one passes."""
+    most structured axis (:func:`screen`), its synthesized terms when no named one passes; then,
+    if none passes, those of the next structured axis (:func:`screen_order`)."""
 
     kind = "time histories"
 
@@ -1038,9 +1043,17 @@ class TimeHistoryEvidence:
         return any(self.offsets)
 
     def named(self, rnd: int, current: Simulator, diag, factors: FactorSet) -> list[Change]:
-        scr, first, self._terms = screen(rnd, current, self.lib, self.tests, diag)
+        axis = next(a for a in screen_order(diag) if a not in self._screened(rnd))
+        scr, first, self._terms = screen(rnd, current, self.lib, self.tests, axis)
         self.screens.append(scr)
         return first
+
+    def _screened(self, rnd: int) -> set[str]:
+        return {a for s in self.screens if s.round == rnd for a in s.axes}
+
+    def unscreened(self, rnd: int, diag) -> bool:
+        """A structured axis of the round's diagnosis not screened yet (:func:`screen_order`)."""
+        return any(a not in self._screened(rnd) for a in screen_order(diag))
 
     def synthesized(self, rnd: int, current: Simulator, diag, factors: FactorSet, start: Round) -> list[Change]:
         return self._terms

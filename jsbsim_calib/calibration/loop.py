@@ -133,6 +133,7 @@ class Evidence(Protocol):
     def rebase(self, sim: Simulator) -> bool: ...                    # its nuisance parameters refitted on sim (any?)
     def named(self, rnd: int, current: Simulator, diag, factors: FactorSet) -> list["Change"]: ...
     def synthesized(self, rnd: int, current: Simulator, diag, factors: FactorSet, start: "Round") -> list["Change"]: ...
+    def unscreened(self, rnd: int, diag) -> bool: ...                # named() has candidates of this round left
     def companions(self, ch: "Change") -> list[str]: ...
     def fit_options(self, what: str) -> dict: ...                    # 'candidate' or 'refit': max_nfev, prior
     def judge(self, ch: "Change", cand: "Candidate", current: Simulator, factors: FactorSet) -> list[str]: ...
@@ -685,6 +686,10 @@ def run_loop(ev: Evidence, sim: Simulator, *, max_effects: int = MAX_EFFECTS, di
                 say(f"round {rnd}: no structured residual: nothing to add")
                 break
             tried, best, changes = _round(ev, rnd, current, factors, diag, say)
+            while best is None and ev.unscreened(rnd, diag):
+                say(f"round {rnd}: nothing passes; screening the next structured part")
+                more, best, changes = _round(ev, rnd, current, factors, diag, say)
+                tried += more
             candidates += tried
             if best is None:
                 break

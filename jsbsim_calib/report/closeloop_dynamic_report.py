@@ -79,11 +79,12 @@ def residual_vs_regressor(x: np.ndarray, y: np.ndarray, name: str, round_: int, 
 
 
 def _evidence_figures(result: CloseLoopDynamicResult, out_dir: Path) -> list[str]:
-    """The residual-against-regressor plot of each added change, from its round's screen."""
+    """The residual-against-regressor plot of each added change, from the screen that flew it (a
+    round screens a second axis when the first yields nothing: the last screen of its round)."""
     names = []
     for c in result.candidates:
-        scr = next((s for s in result.screens if s.round == c.round), None)
-        if not c.accepted or scr is None or c.effect not in scr.explains:
+        scr = next((s for s in reversed(result.screens) if s.round == c.round and c.effect in s.explains), None)
+        if not c.accepted or scr is None:
             continue
         x, y = scr.explains[c.effect]
         name = f"{REPORT}_round{c.round}_{_safe(c.effect)}.png"
