@@ -15,15 +15,16 @@ import pytest
 
 from jsbsim_calib.data.part60_tests import (CATALOGUE, FAIL, NA, PASS, Tolerance, catalogue_test, classify_files, judge,
                                       load_static_cases)
-from jsbsim_calib.data.timehistory import (Configuration, SensorError, TimeHistoryMeta,
-                                           trajectory_to_time_history, write_time_history)
+from jsbsim_calib.data.timehistory import (INPUT_NOISE_SIGMAS, Configuration, SensorError, TimeHistoryMeta,
+                                           load_time_history, trajectory_to_time_history, write_time_history)
 from jsbsim_calib.flight.condition import Condition
 from jsbsim_calib.jsbsim.simulator import Simulator
 from jsbsim_calib.jsbsim.trajectory import Hold, Input, Maneuver, fly
 from jsbsim_calib.evaluation.part60 import SummaryData, evaluate_part60, load_part60_inputs, objective_verdict
 from jsbsim_calib.report.part60_report import format_part60_table, write_part60_report
 from jsbsim_calib.evaluation.evaluate_dynamic import response_times
-from jsbsim_calib.evaluation.timehistory_compare import oscillation, turning_points
+from jsbsim_calib.evaluation.timehistory_compare import (END_S, compare_time_history, oscillation, replay_spread,
+                                                         turning_points)
 from jsbsim_calib.synthetic.maneuvers import load_plan, synthesize_maneuvers
 
 REPO = Path(__file__).resolve().parents[1]
@@ -267,6 +268,37 @@ def test_the_model_passes_its_own_level5_flight_test_at_every_seed(tmp_path):
             bad = {t.test.id: t.reason for t in ev.tests if t.verdict not in (PASS, NA)}
             assert not bad, f"seed {seed}: {bad}"
             assert {t.test.id for t in ev.tests if t.verdict == PASS} == JUDGED_ON_LEVEL5, f"seed {seed}"
+
+
+def test_a_spiral_trend_is_judged_against_the_replays_spread(tmp_path):
+    """The spiral's trend (its bank change 30 s after the release) integrates the level an
+    input is replayed from, the mean of a 1 s steady lead: the committed C172's Level 5 spiral
+    (seed 0) moves by +-2.7 deg with its inputs each moved by the standard error of that mean.
+    A record whose trend is the other way but within INPUT_NOISE_SIGMAS of that spread passes,
+    with the reason; one beyond it fails. (With the swirl on, the model's own Level 5 flight
+    at seed 4 replayed +6.3 deg against the record's -2.9: 0.068 deg of aileron between the
+    lead's mean and the released trim.)"""
+    plan = load_plan("level5")
+    with Simulator(REPO, "c172") as sim:
+        [path] = synthesize_maneuvers(sim, replace(plan, maneuvers=tuple(m for m in plan.maneuvers if m.id == "S.13")),
+                                      tmp_path, seed=0)
+        th = load_time_history(path)
+        c = compare_time_history(sim, th)
+        got = {v.name: v for v in c.metrics}["spiral_roll_change_deg"]
+        spread = replay_spread(sim, th, c, got.name)
+        band = INPUT_NOISE_SIGMAS * spread
+        assert got.verdict == PASS and got.model < -1.0 and 1.0 < spread < 5.0    # measured -6.16, +-2.70 deg
+        t = th.time_s - th.time_s[0]
+        release = th.meta.pilot["roll"][0]["end_s"]
+        roll = th.channel("roll_deg")
+        ramp = np.sign(np.interp(release, t, roll)) * np.clip((t - release) / (t[-1] - END_S - release), 0.0, 1.0)
+        for trend, verdict in ((1.5, PASS), (got.model + 1.25 * band, FAIL)):
+            bent = replace(th, frame=th.frame.assign(roll_deg=roll + (trend - got.flight_test) * ramp))
+            v = {m.name: m for m in compare_time_history(sim, bent).metrics}["spiral_roll_change_deg"]
+            assert v.flight_test == pytest.approx(trend, abs=1e-6) and v.model == pytest.approx(got.model, abs=1e-6)
+            assert v.verdict == verdict and "wrong trend" in v.reason, (trend, v)
+            assert ("replay's spread" in v.reason) == (verdict == PASS)
+        assert 1.5 - got.model <= band
 
 
 def test_synthetic_report_and_cli(synthetic, tmp_path, capsys):

@@ -736,6 +736,23 @@ def _outside(inp: Input, spans: Sequence[tuple[float, float]], t: np.ndarray) ->
     return replace(inp, time_s=tuple(times), value=tuple(values))
 
 
+def _travel(geometry, travel: Mapping[str, ControlAxis] | None) -> Mapping[str, ControlAxis] | None:
+    if travel is None and geometry is not None and getattr(geometry, "control_travel_file", None):
+        return load_control_travel(geometry.control_travel_file)
+    return travel
+
+
+def reference_errors(th: TimeHistory, geometry=None, *,
+                     travel: Mapping[str, ControlAxis] | None = None) -> dict[str, float]:
+    """Per replayed input (its maneuver channel), the standard error of the level a replay
+    flies it from: the mean of the steady lead's samples (:meth:`TimeHistory.steady_lead`),
+    so its sample noise (:func:`input_noise`) over the square root of the lead's length; 0
+    where the lead is too short to measure the noise."""
+    travel, lead = _travel(geometry, travel), th.steady_lead()
+    return {channel: input_noise(x, lead) / math.sqrt(lead)
+            for channel, x in (_input_series(th, name, travel) for name in th.meta.inputs)}
+
+
 def maneuver_from_time_history(th: TimeHistory, geometry=None, pilot: Mapping[str, str] | None = None, *,
                                travel: Mapping[str, ControlAxis] | None = None) -> Maneuver:
     """A maneuver that replays the record: from the trim at its steady start
@@ -747,8 +764,7 @@ def maneuver_from_time_history(th: TimeHistory, geometry=None, pilot: Mapping[st
     with the targets and times the record keeps; while a loop flies its axis, the axis's
     recorded input is not replayed (:func:`_outside`: it is the record's pilot's output), so a
     model replaying its own record flies it again."""
-    if travel is None and geometry is not None and getattr(geometry, "control_travel_file", None):
-        travel = load_control_travel(geometry.control_travel_file)
+    travel = _travel(geometry, travel)
     holds, flown = _holds(pilot, th.path or th.stem), _loop_spans(pilot)
     t = th.time_s - th.time_s[0]
     lead = th.steady_lead()
