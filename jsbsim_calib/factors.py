@@ -152,9 +152,10 @@ FACTORS: tuple[Factor, ...] = (
        "rudder circulation (eq. 3.36)",
        "adds fin circulation as a positive (trailing edge left) rudder does: nose-left moment"),
     # The method bounds K_PF to [0, 0.5] for its form applied on every strip; applied once as
-    # eq. 3.38 the C172 flight-test climbs need about 5 (the term also stands for the
-    # slipstream swirl on the fin, which the strip model lacks, and trades with K_dr_slope):
-    # bound widened to 5, measured, see README.
+    # eq. 3.38 the C172 flight-test climbs need about 5 (it trades with K_dr_slope; with the
+    # slipstream's swirl off it also stood for the swirl on the fin): bound widened to 5. With
+    # the swirl on the C172's chain still puts it at 5; bounded to 3 it cuts K_dr_slope
+    # instead and the slow end is no better (docs/results.md, the slow end).
     _f("K_PF", 0.0, 0.0, 5.0, "-", ("pfactor", "steady refit"), ("rudder_deg", "aileron_deg"),
        "yawing moment N = -K_PF T (D/2) sin(alpha) (eq. 3.38)",
        "P-factor: + nose-left yaw growing with thrust and alpha (right rudder in climbs)"),
