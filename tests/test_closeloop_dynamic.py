@@ -23,11 +23,12 @@ import numpy as np
 import pytest
 from lxml import etree
 
-from jsbsim_calib.calibration.loop import MATERIAL, MIN_EVIDENCE, MIN_EXPLAINED, Candidate, Change, \
+from jsbsim_calib.calibration.loop import MIN_EVIDENCE, MIN_EXPLAINED, Candidate, Change, \
     evidence_failures, fit_again, pays_off_out_of_sample, run_loop
 from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, TimeHistoryEvidence, acts_on,
                                                         close_loop_dynamic, check_tests, companion_factors,
-                                                        cross_validate, default_effects, diagnose_responses,
+                                                        cross_validate, default_effects, diagnose_channel,
+                                                        diagnose_responses,
                                                         dynamic_library, effect_axis, excites, fly_all,
                                                         noise_in_scales, projected, screen_order)
 from jsbsim_calib.data.flighttest import load_control_travel
@@ -315,19 +316,20 @@ def test_b_the_model_flying_its_own_level5_campaign_adds_nothing(clean, tmp_path
 # Effects in no library flown on the packaged Level 5 plan (22 maneuvers, sensor noise and biases on
 # every channel, inputs included; seed 1): (truth, what the loop must add, its label, value, the factor a
 # term makes vary (held), the axis's worst channel); measured (this machine, seed 1): value found, the
-# channel beyond its bias and noise before -> after, wall (two runs at once)
+# channel beyond its bias and noise before -> after, wall (two runs at once); on the product with the
+# swirl on (benchmarks/undeclared_dynamic.py, 2026-11-28; the swirl off before it)
 LEVEL5_UNDECLARED = {
-    # -4.048e-5 (1 %); roll 0.500 -> 0.042 deg; 104 s
+    # -4.015e-5 (0.4 %); roll 0.691 -> 0.042 deg; 76 s (swirl off: -4.048e-5, 0.500 -> 0.042)
     "aileron power x qbar": (UndeclaredTerm("ROLL", -4e-5, "aileron x qbar"), "synth_Cl_aileron_x_qbar",
                              "Cl_aileron_x_qbar", -4e-5, "K_da_slope", "roll_deg"),
-    # -0.03044 (1 %); beta 0.622 -> 0.046 deg (its RMS 0.687 -> 0.306: the plan's 0.3 deg bias); 119 s
+    # -0.0307 (2 %); beta 0.708 -> 0.053 deg (its RMS 0.775 -> 0.310: the plan's 0.3 deg bias); 92 s
     "adverse yaw x alpha": (UndeclaredTerm("YAW", -0.03, "aileron x alpha"), "synth_Cn_aileron_x_alpha",
                             "Cn_aileron_x_alpha", -0.03, "", "beta_deg"),
-    # -4.303e-4 (8 %; 17 % and pitch 0.497 deg after before the offsets were refitted with the term);
-    # pitch 1.42 -> 0.174 deg; 132 s
+    # -4.383e-4 (10 %; swirl off 8 %, and 17 % before the offsets were refitted with the term);
+    # pitch 1.44 -> 0.16 deg; 94 s
     "elevator power x qbar": (UndeclaredTerm("PITCH", -4e-4, "elevator x qbar"), "synth_Cm_elevator_x_qbar",
                               "Cm_elevator_x_qbar", -4e-4, "", "pitch_deg"),
-    # 1.9958 (0.2 %); p 0.282 -> 0.024 deg/s; 83 s
+    # 2.001 (0.05 %); p 0.385 -> 0.026 deg/s; 79 s
     "roll inertia x2": (("ixx", 2.0), "inertia ixx", "ixx_scale", 2.0, "", "p_deg_s"),
 }
 
@@ -338,9 +340,11 @@ def test_an_undeclared_effect_is_found_on_the_level5_campaign(clean, tmp_path, c
     """Each effect flown by a truth on the packaged Level 5 plan, sensor noise and biases on: the
     loop adds the term (or the inertia) naming the truth's states and axis, within 25 %, and the
     axis's worst channel falls to at most a quarter of what it was beyond its bias and noise (a
-    sensor's bias no model change removes). The aileron power: its roll rate is structured over
-    the two tests that move the ailerons (1.14 of its scale beyond noise, measured), not over every
-    test (0.235, diluted by the steady tests); before that rule the loop added nothing."""
+    sensor's bias no model change removes). The aileron power: its roll rate is far more structured
+    over the two tests that move the ailerons than over every test (diluted by the steady tests).
+    With the swirl off it was structured over those two only (1.14 of its scale beyond noise, 0.235
+    over every test), and before the rule that judges a body rate there the loop added nothing; with
+    the swirl on, 1.50 of its scale there and 0.32 over every test (measured)."""
     truth_term, added, label, value, held, channel = LEVEL5_UNDECLARED[case]
     with Simulator.from_dir(truth_with(tmp_path, truth_term), REPO) as t:
         synthesize_maneuvers(t, load_plan("level5"), tmp_path / "l5", seed=1)
@@ -358,8 +362,8 @@ def test_an_undeclared_effect_is_found_on_the_level5_campaign(clean, tmp_path, c
     if case == "aileron power x qbar":
         assert [t.id for t in tests if excites(t, "roll")] == ["S.08", "S.10"]
         p = res.diagnosis_before["p_deg_s"]
-        assert p.beyond < MATERIAL * p.scale
-        assert p.structured and p.reason.endswith("over the tests that move its axis (S.08, S.10)"), p.reason
+        own = diagnose_channel("p_deg_s", [r for r in res.before if excites(r.test, "roll")])
+        assert p.structured and own.structured and own.beyond > 3 * p.beyond, (own.beyond, p.beyond)
 
 
 def test_a_sensor_bias_is_a_nuisance_not_structure(clean, tmp_path):

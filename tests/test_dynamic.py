@@ -204,19 +204,19 @@ def test_an_engine_range_that_is_not_a_range_is_named(tmp_path):
 
 
 def test_the_engine_step_refits_the_rotating_inertia_from_the_rpm_response(sim, tests_real):
-    """A truth with K_Ip = 1.8 sets the response time the engine step fits; from K_Ip = 1 it
+    """A truth with K_Ip = 1.3 sets the response time the engine step fits; from K_Ip = 1 it
     finds the truth again (the step prior pulls a little toward its start). Recorded time
     histories hold no RPM channel: the step does not fly them."""
     eng = next(t for t in tests_real if t.kind == "engine_acceleration")
     step = next(s for s in DYNAMIC_STEPS if s.name == "engine dynamics")
     start = sim.factors
     try:
-        sim.set_factors(start.replace(K_Ip=1.8))
+        sim.set_factors(start.replace(K_Ip=1.3))
         truth = fly_test(sim, eng).metrics[0].model
         assert 2.0 < truth < 3.0
         measured = replace(eng, metrics=(replace(eng.metrics[0], measured=truth),))
         out = dynamic_step(sim, step, [measured], {}, start.replace(K_Ip=1.0))
-        assert out.final["K_Ip"] == pytest.approx(1.8, rel=0.03)
+        assert out.final["K_Ip"] == pytest.approx(1.3, rel=0.03)
         assert dynamic_step(sim, step, [recorded("e", "engine_acceleration", fly(sim, eng.maneuver))], {}, start) is None
     finally:
         sim.set_factors(start)

@@ -45,7 +45,7 @@ PREDICTION_TOL = 0.1          # ... and predictions within this share of their t
 def _copy_root(tmp: Path) -> Path:
     root = tmp / "root"
     for d in ("aircraft", "engine", "airfoils", "data", "scripts"):
-        shutil.copytree(REPO / d, root / d)
+        shutil.copytree(REPO / d, root / d, ignore=shutil.ignore_patterns("backup"))   # a checkout's own writes
     return root
 
 

@@ -168,7 +168,9 @@ def test_trim_steps_recover_known_factors_from_synthetic_snapshots(repo, tmp_pat
     keep = []
     for i, c in enumerate(conds):
         t = sim.trim_level(c)
-        assert t.trimmed, (f["table"].iloc[i], t.reason)
+        if not t.trimmed:        # a climb the truth's power cannot make (C.3, 100 fpm short with the swirl's rudder)
+            assert "full throttle" in t.reason, (f["table"].iloc[i], t.reason)
+            continue
         for m in real.metrics:
             f.loc[i, m] = round(snapshot_value(m, t), 4)
         # a point the truth flies at full throttle pays the throttle penalty in every step:

@@ -76,11 +76,12 @@ def test_stage_factors_keep_the_model_switches_the_aircraft_file_sets(tmp_path):
     for d in ("aircraft", "engine", "airfoils", "data"):
         shutil.copytree(REPO / d, root / d, ignore=shutil.ignore_patterns("backup"))
     xml = root / "aircraft" / "c172" / "c172.xml"
-    off = '<property value="0" persistent="true"> calibration/K_swirl </property>'
+    off = '<property value="0" persistent="true"> calibration/K_slip </property>'
     assert off in xml.read_text()
     xml.write_text(xml.read_text().replace(off, off.replace('value="0"', 'value="1"')))
-    assert stage_factors(root, "c172", "steady")["K_swirl"] == stage_factors(root, "c172", "trims")["K_swirl"] == 1.0
-    assert stage_factors(REPO, "c172", "steady")["K_swirl"] == 0.0
+    assert stage_factors(root, "c172", "steady")["K_slip"] == stage_factors(root, "c172", "trims")["K_slip"] == 1.0
+    assert stage_factors(REPO, "c172", "steady")["K_slip"] == 0.0
+    assert stage_factors(REPO, "c172", "trims")["K_swirl"] == 1.0          # the product's own switch
 
 
 # --------------------------------------------------------------------------- NaN never passes
