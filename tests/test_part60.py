@@ -23,8 +23,8 @@ from jsbsim_calib.jsbsim.trajectory import Hold, Input, Maneuver, fly
 from jsbsim_calib.evaluation.part60 import SummaryData, evaluate_part60, load_part60_inputs, objective_verdict
 from jsbsim_calib.report.part60_report import format_part60_table, write_part60_report
 from jsbsim_calib.evaluation.evaluate_dynamic import response_times
-from jsbsim_calib.evaluation.timehistory_compare import (END_S, compare_time_history, oscillation, replay_spread,
-                                                         turning_points)
+from jsbsim_calib.evaluation.timehistory_compare import (END_S, _within_spread, compare_time_history, oscillation,
+                                                         replay_spread, turning_points)
 from jsbsim_calib.synthetic.maneuvers import load_plan, synthesize_maneuvers
 
 REPO = Path(__file__).resolve().parents[1]
@@ -298,6 +298,10 @@ def test_a_spiral_trend_is_judged_against_the_replays_spread(tmp_path):
             assert v.flight_test == pytest.approx(trend, abs=1e-6) and v.model == pytest.approx(got.model, abs=1e-6)
             assert v.verdict == verdict and "wrong trend" in v.reason, (trend, v)
             assert ("replay's spread" in v.reason) == (verdict == PASS)
+            if verdict == FAIL:           # a record the model did not replay, or a NaN, keeps its FAIL
+                assert _within_spread(sim, bent, replace(c, maneuver=None), v) is v
+                nan = replace(v, error=math.nan)
+                assert _within_spread(sim, bent, c, nan) is nan
         assert 1.5 - got.model <= band
 
 

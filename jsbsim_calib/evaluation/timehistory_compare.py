@@ -420,8 +420,8 @@ def compare_time_history(sim, th: TimeHistory, *, test: Part60Test | None = None
                  else {m.name: math.nan for m in test.metrics})
     out.metrics = _held([judge(spec, got_data[spec.name], got_model[spec.name]) for spec in test.metrics],
                         out.loops)
-    out.metrics = [_within_spread(sim, th, out, v) if v.verdict == FAIL and test.metric(v.name).tolerance.judged == "trend"
-                   else v for v in out.metrics]
+    trend = {m.name for m in test.metrics if m.tolerance.judged == "trend"}
+    out.metrics = [_within_spread(sim, th, out, v) if v.verdict == FAIL and v.name in trend else v for v in out.metrics]
     return out
 
 
@@ -452,6 +452,8 @@ def _within_spread(sim, th: TimeHistory, c: TimeHistoryComparison, v: MetricVerd
     """A trend judged wrong is not, where the flight test lies within :data:`INPUT_NOISE_SIGMAS`
     of the replay's spread (:func:`replay_spread`): the record cannot tell the model's trend
     from its own there (the replay follows its inputs within as many standard deviations)."""
+    if c.maneuver is None or not math.isfinite(v.error):      # no replay, or a NaN: nothing to weigh
+        return v
     try:
         spread = replay_spread(sim, th, c, v.name)
     except (CalibError, ValueError):         # a moved replay that does not fly judges nothing
