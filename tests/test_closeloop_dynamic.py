@@ -28,9 +28,9 @@ from jsbsim_calib.calibration.loop import MIN_EVIDENCE, MIN_EXPLAINED, Candidate
 from jsbsim_calib.calibration.closeloop_dynamic import (ChannelDiagnosis, TimeHistoryEvidence, acts_on,
                                                         close_loop_dynamic, check_tests, companion_factors,
                                                         cross_validate, default_effects, diagnose_channel,
-                                                        diagnose_responses,
-                                                        dynamic_library, effect_axis, excites, fly_all,
-                                                        noise_in_scales, projected, screen_order)
+                                                        diagnose_responses, dynamic_library, effect_axis,
+                                                        excites, fly_all, noise_in_scales, projected,
+                                                        screen_order)
 from jsbsim_calib.data.flighttest import load_control_travel
 from jsbsim_calib.evaluation.evaluate_dynamic import CHANNEL_SCALES, FAIL_RESIDUAL, load_recorded_tests
 from jsbsim_calib.core.errors import InputError

@@ -416,7 +416,7 @@ def compare_time_history(sim, th: TimeHistory, *, test: Part60Test | None = None
     if test is None:
         return out
     got_data = measure_trace(test, Trace(t, data, start, end))
-    got_model = (_rescale(test, got_data, measure_trace(test, Trace(t, out.model, start, end))) if out.model
+    got_model = (_rescale(test, got_data, _measured_model(out, out.model)) if out.model
                  else {m.name: math.nan for m in test.metrics})
     out.metrics = _held([judge(spec, got_data[spec.name], got_model[spec.name]) for spec in test.metrics],
                         out.loops)
