@@ -171,3 +171,37 @@ def test_a_ctrl_c_in_a_simulators_cleanup_reaches_the_main_thread(root):
                          env=ENV, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "interrupted" and "Exception ignored" not in out.stderr, (out.stdout, out.stderr)
+
+
+CTRL_C_AT_A_WORKERS_BIRTH = """
+import os, signal, sys, multiprocessing.util as util
+from jsbsim_calib.core.executor import ProcessExecutor
+spawn = util.spawnv_passfds
+def spawn_then_ctrl_c(path, args, fds):
+    pid = spawn(path, args, fds)
+    if any("spawn_main" in os.fsdecode(a) for a in args):    # a pool worker, not the resource tracker
+        os.kill(os.getpid(), signal.SIGINT)
+    return pid
+util.spawnv_passfds = spawn_then_ctrl_c
+if __name__ == "__main__":
+    ex = ProcessExecutor(2)
+    try:
+        print(ex.map(abs, [1, -2, 3]))
+    except KeyboardInterrupt:
+        print("interrupted")
+    finally:
+        util.spawnv_passfds = spawn
+        ex.close()
+"""
+
+
+def test_ctrl_c_while_a_worker_is_born_prints_no_workers_traceback(tmp_path):
+    """The moment CI once hit at random: Ctrl-C after the pool has spawned a worker and before it
+    has sent the worker its start-up data (the worker then died reading it: EOFError, with its
+    traceback on the terminal). Here the signal is sent at exactly that moment: the parent is
+    interrupted, and no worker speaks."""
+    script = tmp_path / "birth.py"
+    script.write_text(CTRL_C_AT_A_WORKERS_BIRTH)
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=ENV, timeout=120)
+    assert run.returncode == 0 and run.stdout.strip() == "interrupted", (run.stdout, run.stderr)
+    assert run.stderr == "", run.stderr
