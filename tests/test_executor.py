@@ -156,6 +156,7 @@ def test_process_pool_and_dask_give_the_same_bits_as_this_process():
     with DaskExecutor(workers=2) as dask:
         assert dask.workers == 2
         assert _small_fit(dask) == serial
+        assert dask.map(abs, list(range(-9, 0)), key="abs") == list(range(9, 0, -1))   # 9 items in 2 strided blocks: in order
 
 
 def test_dynamic_tests_fly_the_same_on_a_pool():

@@ -35,6 +35,10 @@ _CACHE: dict[str, Callable] = {}          # in a worker: unpickled functions by 
 _CACHE_LIMIT = 4
 _RUNNING: dict[str, int] = {}             # keys of the functions running now (nested work), by depth
 CONNECT_TIMEOUT_S = 5            # an unreachable dask scheduler fails after this, naming its address
+# a dask worker samples its task's stack every 10 ms for its dashboard's profile: a fit's task is a
+# deep stack of short Python calls into JSBSim, and the sampling cost it a quarter of its CPU (the
+# steady stage on 2 workers: 23.1 CPU-s against the pool's 18.5). A remote cluster: docs/cluster.md
+DASK_WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
 
 
 def _call(key: str, payload, item):
@@ -58,6 +62,11 @@ def _call(key: str, payload, item):
         _RUNNING[key] -= 1
         if not _RUNNING[key]:
             del _RUNNING[key]
+
+
+def _call_block(key: str, payload, items) -> list:
+    """A block of tasks in one worker (:meth:`DaskExecutor.map`)."""
+    return [_call(key, payload, item) for item in items]
 
 
 def _close(fn) -> None:
@@ -207,10 +216,13 @@ class DaskExecutor(Executor):
                 raise CalibError(f"--scheduler {scheduler}: no dask scheduler answers there within "
                                  f"{CONNECT_TIMEOUT_S} s ({type(exc).__name__}: {exc})") from None
         else:
-            self._cluster = LocalCluster(n_workers=max(1, int(workers or os.cpu_count() or 1)), threads_per_worker=1,
-                                         processes=True, dashboard_address=None)
+            import dask
+            with dask.config.set(DASK_WORKER_CONFIG):     # the workers take it at their start
+                self._cluster = LocalCluster(n_workers=max(1, int(workers or os.cpu_count() or 1)),
+                                             threads_per_worker=1, processes=True, dashboard_address=None)
             self._client = Client(self._cluster)
-        self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
+        self._addresses = sorted(self._client.scheduler_info().get("workers", {}))
+        self.workers = max(1, len(self._addresses))
         self._scattered: dict = {}
 
     def map(self, fn, items, key=None):
@@ -219,9 +231,22 @@ class DaskExecutor(Executor):
         digest, payload = self._payloads.get(fn, key)
         if digest not in self._scattered:           # sent to every worker once
             self._scattered = {digest: self._client.scatter(payload, broadcast=True)}
-        futures = self._client.map(_call, [digest] * len(items), [self._scattered[digest]] * len(items), list(items),
-                                   pure=False)
-        return self._client.gather(futures)
+        # a block of items per worker, not a task per item: a task costs the cluster about 2 ms
+        # of its scheduler's and workers' time, and a fit's batch is a few items of 10-40 ms (a
+        # batch of nine 30 ms items: 10-13 ms over its work against 19-24 ms; the pool's: 2-3).
+        # Strided, so that the costly items (a propeller factor's column loads JSBSim anew) spread
+        # over the blocks; placed one a worker (left alone, the scheduler at times queued a whole
+        # batch on one worker), and free to move where that worker is gone (docs/cluster.md)
+        n = min(len(items), self.workers)
+        blocks = [list(items[i::n]) for i in range(n)]
+        pins = [[a] for a in self._addresses] or [None]
+        futures = [self._client.submit(_call_block, digest, self._scattered[digest], block, pure=False,
+                                       workers=pins[i % len(pins)], allow_other_workers=True)
+                   for i, block in enumerate(blocks)]
+        out: list = [None] * len(items)
+        for i, block in enumerate(self._client.gather(futures)):
+            out[i::n] = block
+        return out
 
     def close(self) -> None:
         self._client.close()
