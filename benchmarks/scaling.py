@@ -39,6 +39,7 @@ from jsbsim_calib.jsbsim.simulator import Simulator
 
 ROOT = Path(__file__).resolve().parents[1]
 PREDICT_AT = (16, 64)
+READY_MODULES = ("jsbsim_calib.calibration.workflow",)     # what a stage's tasks import
 
 
 class Timed:
@@ -79,8 +80,10 @@ def chain(executor) -> np.ndarray:
 def run(job, kind: str, workers: int) -> tuple[float, Timed, np.ndarray]:
     """Wall time, the timed executor (time in batches, their count) and the result of ``job``
     on ``kind`` with ``workers`` (one worker: this process). The executor starts before the
-    clock (a cluster's start-up is not the job's)."""
+    clock (a cluster's start-up is not the job's, nor a pool's: about 1 s on 2 cores, which the
+    pool spends at its first batch unless :meth:`ready` starts it)."""
     with make_executor("serial" if workers == 1 else kind, workers) as ex:
+        ex.ready(READY_MODULES)         # the workers started and the fits' modules imported there, on both
         timed = Timed(ex)
         t0 = time.perf_counter()
         out = job(timed)

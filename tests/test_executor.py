@@ -6,6 +6,7 @@ freshly baked ones."""
 from __future__ import annotations
 
 import pickle
+import sys
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -156,7 +157,20 @@ def test_process_pool_and_dask_give_the_same_bits_as_this_process():
     with DaskExecutor(workers=2) as dask:
         assert dask.workers == 2
         assert _small_fit(dask) == serial
+        fleet = "jsbsim_calib.evaluation.fleet"                                   # nothing above imports it
+        assert not any(dask._client.run(lambda: fleet in sys.modules).values())
+        dask.ready([fleet])
+        assert all(dask._client.run(lambda: fleet in sys.modules).values())
         assert dask.map(abs, list(range(-9, 0)), key="abs") == list(range(9, 0, -1))   # 9 items in 2 strided blocks: in order
+
+
+def test_a_ready_pool_has_every_worker_started():
+    with ProcessExecutor(2) as pool:
+        assert not pool._pool._processes                  # a pool starts with its first batch
+        pool.ready(["jsbsim_calib.calibration.fit"])
+        assert len(pool._pool._processes) == 2
+        pool.ready()                                      # again: the same two
+        assert len(pool._pool._processes) == 2 and pool.map(abs, [-1, -2]) == [1, 2]
 
 
 def test_dynamic_tests_fly_the_same_on_a_pool():

@@ -18,11 +18,13 @@ from __future__ import annotations
 import atexit
 import contextlib
 import hashlib
+import importlib
 import multiprocessing
 import os
 import shutil
 import signal
 import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, Callable, Sequence
 
@@ -34,6 +36,8 @@ from .tempdirs import make_dir
 _CACHE: dict[str, Callable] = {}          # in a worker: unpickled functions by key
 _CACHE_LIMIT = 4
 _RUNNING: dict[str, int] = {}             # keys of the functions running now (nested work), by depth
+_MEETING = None                           # in a pool's worker: the barrier of ProcessExecutor.ready
+READY_TIMEOUT_S = 300
 CONNECT_TIMEOUT_S = 5            # an unreachable dask scheduler fails after this, naming its address
 # a dask worker samples its task's stack every 10 ms for its dashboard's profile: a fit's task is a
 # deep stack of short Python calls into JSBSim, and the sampling cost it a quarter of its CPU (the
@@ -97,11 +101,26 @@ def _signals_held():
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
-def _worker_init() -> None:
+def _worker_init(meeting=None) -> None:
+    global _MEETING
+    _MEETING = meeting
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the parent's to handle: no worker tracebacks
     if hasattr(signal, "pthread_sigmask"):
         signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD)     # held by the parent while it spawned this worker
     atexit.register(lambda: [_close(f) for f in _CACHE.values()])
+
+
+def _import(modules: Sequence[str]) -> None:
+    for m in modules:
+        importlib.import_module(m)
+
+
+def _meet(modules: Sequence[str]) -> int:
+    """A worker imports ``modules`` and waits here until every worker of its pool has come
+    (:meth:`ProcessExecutor.ready`)."""
+    _import(modules)
+    _MEETING.wait(READY_TIMEOUT_S)
+    return os.getpid()
 
 
 class _Payloads:
@@ -152,6 +171,13 @@ class Executor:
         digest, payload = self._payloads.get(fn, key)
         return [_call(digest, payload, i) for i in items]
 
+    def ready(self, modules: Sequence[str] = ()) -> float:
+        """Every worker started and ``modules`` imported there (otherwise a pool's workers start with
+        its first batch, and a task imports what its function needs); the seconds it took."""
+        t0 = time.perf_counter()
+        _import(modules)
+        return time.perf_counter() - t0
+
     def close(self) -> None:
         pass
 
@@ -176,9 +202,24 @@ class ProcessExecutor(Executor):
     def __init__(self, workers: int | None = None):
         super().__init__()
         self.workers = max(1, int(workers or os.cpu_count() or 1))
-        self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=_worker_init)
+        spawn = multiprocessing.get_context("spawn")
+        self._pool = ProcessPoolExecutor(self.workers, mp_context=spawn, initializer=_worker_init,
+                                         initargs=(spawn.Barrier(self.workers),))
         self._dir = make_dir("jsbsim-calib-tasks-")
+
+    def ready(self, modules: Sequence[str] = ()) -> float:
+        """Start every worker now, import ``modules`` there, and wait until all have; the seconds it
+        took. A command's workers start with its first batch instead (about 1 s on 2 cores: spawn
+        and imports): a benchmark's clock starts after this, as after a cluster's start. Each
+        worker takes one task that waits for the others, so the pool starts one process per task."""
+        t0 = time.perf_counter()
+        if self.workers == 1:
+            return super().ready(modules)
+        with _signals_held():
+            meetings = [self._pool.submit(_meet, tuple(modules)) for _ in range(self.workers)]
+        for f in meetings:
+            f.result()
+        return time.perf_counter() - t0
 
     def map(self, fn, items, key=None):
         if self.workers == 1 or len(items) <= 1:
@@ -247,6 +288,12 @@ class DaskExecutor(Executor):
         for i, block in enumerate(self._client.gather(futures)):
             out[i::n] = block
         return out
+
+    def ready(self, modules: Sequence[str] = ()) -> float:
+        """``modules`` imported on every worker (the cluster's workers have started with it)."""
+        t0 = time.perf_counter()
+        self._client.run(_import, tuple(modules))
+        return time.perf_counter() - t0
 
     def close(self) -> None:
         self._client.close()
