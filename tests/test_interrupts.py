@@ -176,6 +176,7 @@ def test_a_ctrl_c_in_a_simulators_cleanup_reaches_the_main_thread(root):
 CTRL_C_AT_A_WORKERS_BIRTH = """
 import os, signal, sys, multiprocessing.util as util
 from jsbsim_calib.core.executor import ProcessExecutor
+signal.signal(signal.SIGINT, signal.default_int_handler)    # as the command line takes it (a test worker may ignore it)
 spawn = util.spawnv_passfds
 def spawn_then_ctrl_c(path, args, fds):
     pid = spawn(path, args, fds)
