@@ -24,7 +24,6 @@ import os
 import shutil
 import signal
 import threading
-import time
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, Callable, Sequence
 
@@ -171,12 +170,10 @@ class Executor:
         digest, payload = self._payloads.get(fn, key)
         return [_call(digest, payload, i) for i in items]
 
-    def ready(self, modules: Sequence[str] = ()) -> float:
+    def ready(self, modules: Sequence[str] = ()) -> None:
         """Every worker started and ``modules`` imported there (otherwise a pool's workers start with
-        its first batch, and a task imports what its function needs); the seconds it took."""
-        t0 = time.perf_counter()
+        its first batch, and a task imports what its function needs)."""
         _import(modules)
-        return time.perf_counter() - t0
 
     def close(self) -> None:
         pass
@@ -207,19 +204,17 @@ class ProcessExecutor(Executor):
                                          initargs=(spawn.Barrier(self.workers),))
         self._dir = make_dir("jsbsim-calib-tasks-")
 
-    def ready(self, modules: Sequence[str] = ()) -> float:
-        """Start every worker now, import ``modules`` there, and wait until all have; the seconds it
-        took. A command's workers start with its first batch instead (about 1 s on 2 cores: spawn
-        and imports): a benchmark's clock starts after this, as after a cluster's start. Each
-        worker takes one task that waits for the others, so the pool starts one process per task."""
-        t0 = time.perf_counter()
+    def ready(self, modules: Sequence[str] = ()) -> None:
+        """Start every worker now, import ``modules`` there, and wait until all have. A command's
+        workers start with its first batch instead (about 1 s on 2 cores: spawn and imports): a
+        benchmark's clock starts after this, as after a cluster's start. Each worker takes one
+        task that waits for the others, so the pool starts one process per task."""
         if self.workers == 1:
             return super().ready(modules)
         with _signals_held():
             meetings = [self._pool.submit(_meet, tuple(modules)) for _ in range(self.workers)]
         for f in meetings:
             f.result()
-        return time.perf_counter() - t0
 
     def map(self, fn, items, key=None):
         if self.workers == 1 or len(items) <= 1:
@@ -289,11 +284,9 @@ class DaskExecutor(Executor):
             out[i::n] = block
         return out
 
-    def ready(self, modules: Sequence[str] = ()) -> float:
+    def ready(self, modules: Sequence[str] = ()) -> None:
         """``modules`` imported on every worker (the cluster's workers have started with it)."""
-        t0 = time.perf_counter()
         self._client.run(_import, tuple(modules))
-        return time.perf_counter() - t0
 
     def close(self) -> None:
         self._client.close()
