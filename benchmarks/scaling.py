@@ -13,7 +13,12 @@ and 2b. It prints:
   of independent evaluations, over the wall time), and from each measured speed-up S on p
   workers (Karp-Flatt: e = (1/S - 1/p) / (1 - 1/p)); with Amdahl's law each predicts the
   speed-up at 16 and 64 workers (a fit of n factors has at most n independent Jacobian
-  columns: more workers than that wait);
+  columns: more workers than that wait); under the table, the speed-up measured at 16 and 64
+  workers, where the run has them, beside the ones predicted;
+* where a run's time goes: in batches, split into the least the tasks' own times allow (each
+  batch's slowest task, or its tasks' sum over the workers where longer) and the rest
+  (sending, results, uneven shares), and outside batches; the tasks' count and mean own time
+  (the same evaluations take longer where the workers share a machine's memory and clocks);
 * with ``--profile``, where the one-worker steady stage (and, with ``--chain``, the chain)
   spends its time: JSBSim trims, loads, resets, sandbox files, pickling, flights (their script
   loads, frames and reads; their trims count as trims), the least-squares algebra, and the rest.
@@ -42,23 +47,43 @@ PREDICT_AT = (16, 64)
 READY_MODULES = ("jsbsim_calib.calibration.workflow",)     # what a stage's tasks import
 
 
+class Clocked:
+    """``fn`` with the seconds each call took where it ran (a worker: the task's own time)."""
+
+    def __init__(self, fn):
+        self.fn = fn
+
+    def __call__(self, item):
+        t0 = time.perf_counter()
+        out = self.fn(item)
+        return out, time.perf_counter() - t0
+
+
 class Timed:
     """An executor that times its batches: the time spent in batches of more than one
-    evaluation is the part more workers can share."""
+    evaluation is the part more workers can share. Inside the batches it splits the wall time
+    into what the tasks' own times allow at best (each batch's slowest task, or its tasks'
+    sum over the workers where that is longer) and the rest (sending, results, tasks unevenly
+    shared), and counts the tasks and their own time."""
 
     def __init__(self, executor):
         self.executor, self.parallel_s, self.batches = executor, 0.0, 0
+        self.bound_s, self.task_s, self.tasks = 0.0, 0.0, 0
 
     def __getattr__(self, name):
         return getattr(self.executor, name)
 
     def map(self, fn, items, key=None):
         t0 = time.perf_counter()
-        out = self.executor.map(fn, items, key)
+        out = self.executor.map(Clocked(fn), items, key)
         if len(items) > 1:
             self.parallel_s += time.perf_counter() - t0
             self.batches += 1
-        return out
+            own = [s for _, s in out]
+            self.bound_s += max(max(own), sum(own) / self.executor.workers)
+            self.task_s += sum(own)
+            self.tasks += len(out)
+        return [r for r, _ in out]
 
 
 def steady(executor) -> np.ndarray:
@@ -98,30 +123,56 @@ def karp_flatt(speedup: float, p: int) -> float:
     return (1.0 / speedup - 1.0 / p) / (1.0 - 1.0 / p)
 
 
+def split(timed: Timed, wall: float) -> str:
+    """Where a run's wall time went: in batches (how many) = the least their tasks allow + the
+    rest, and outside batches; the tasks' count and mean own time."""
+    rest = timed.parallel_s - timed.bound_s
+    mean = 1e3 * timed.task_s / max(1, timed.tasks)
+    return (f"{timed.parallel_s:.2f} ({timed.batches}) = {timed.bound_s:.2f} + {rest:.2f} / "
+            f"{wall - timed.parallel_s:.2f}   {timed.tasks} tasks, {mean:.1f} ms")
+
+
 def table(title: str, job, kinds: list[str], workers: list[int], serial: bool = True) -> None:
     """One row per executor and worker count; ``serial=False`` leaves out the one-worker run
-    (no speed-ups: the bits are compared with the table's first run)."""
+    (no speed-ups: the bits are compared with the table's first run). Under the table, the
+    speed-up measured at 16 and 64 workers (where run) beside the ones predicted."""
     print(f"\n{title}")
-    wall1, ref = None, None
+    wall1, ref, e1, measured = None, None, None, {}
     if serial:
         wall1, timed1, ref = run(job, "serial", 1)
         e1 = max(0.0, 1.0 - timed1.parallel_s / wall1)
         print(f"  1 worker (this process): {wall1:7.2f} s; serial fraction from this run {e1:.3f} (time outside "
               f"batches) -> predicts " + ", ".join(f"{amdahl(e1, p):.1f}x at {p}" for p in PREDICT_AT))
+        print(f"  in batches (n) = the least their tasks allow + the rest / outside [s]: {split(timed1, wall1)}")
     print(f"  {'executor':<9}{'workers':>8}{'wall s':>9}{'speed-up':>10}{'efficiency':>11}{'Karp-Flatt e':>14}"
-          f"{'predicts':>22}  same bits  in batches / outside [s]")
+          f"{'predicts':>22}  same bits  in batches (n) = least + rest / outside [s]   tasks, mean own time")
     for kind in kinds:
         for p in [w for w in workers if w > 1]:
             wall, timed, out = run(job, kind, p)
             ref = out if ref is None else ref
             same = "yes" if out.shape == ref.shape and np.array_equal(out, ref) else "NO"
-            split = f"{timed.parallel_s:.2f} ({timed.batches}) / {wall - timed.parallel_s:.2f}"
             if wall1 is None:
-                print(f"  {kind:<9}{p:>8}{wall:>9.2f}{'':>10}{'':>11}{'':>14}{'':>22}  {same:<9}  {split}")
+                print(f"  {kind:<9}{p:>8}{wall:>9.2f}{'':>10}{'':>11}{'':>14}{'':>22}  {same:<9}  {split(timed, wall)}")
                 continue
             s, e = wall1 / wall, karp_flatt(wall1 / wall, p)
+            measured[kind, p] = (s, e)
             pred = ", ".join(f"{amdahl(max(e, 1e-9), q):.1f}x@{q}" for q in PREDICT_AT)
-            print(f"  {kind:<9}{p:>8}{wall:>9.2f}{s:>9.2f}x{s / p:>10.0%}{e:>14.3f}{pred:>22}  {same:<9}  {split}")
+            print(f"  {kind:<9}{p:>8}{wall:>9.2f}{s:>9.2f}x{s / p:>10.0%}{e:>14.3f}{pred:>22}  {same:<9}  "
+                  f"{split(timed, wall)}")
+    for kind in kinds:
+        for q in PREDICT_AT:
+            if (kind, q) in measured:
+                print(f"  {kind} at {q} workers: measured {measured[kind, q][0]:.2f}x; predicted "
+                      + "; ".join(predictions(e1, measured, kind, q)))
+
+
+def predictions(e1: float | None, measured: dict, kind: str, q: int) -> list[str]:
+    """The speed-ups at ``q`` workers that the table's other figures predict: from the
+    one-worker run's serial fraction, and from Karp-Flatt at each smaller worker count."""
+    out = [f"{amdahl(e1, q):.2f}x from the one-worker run's serial fraction"] if e1 is not None else []
+    out += [f"{amdahl(max(e, 1e-9), q):.2f}x from Karp-Flatt at {p}" for (k, p), (_, e) in sorted(measured.items())
+            if k == kind and p < q]
+    return out
 
 
 PROFILE_GROUPS = (   # (what, functions whose cumulative time it is), in the order printed
