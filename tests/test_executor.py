@@ -5,8 +5,11 @@ history-free, and so is a reset after trims; propeller tables kept per factor se
 freshly baked ones."""
 from __future__ import annotations
 
+import contextlib
+import os
 import pickle
 import sys
+import time
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -162,6 +165,29 @@ def test_process_pool_and_dask_give_the_same_bits_as_this_process():
         dask.ready([fleet])
         assert all(dask._client.run(lambda: fleet in sys.modules).values())
         assert dask.map(abs, list(range(-9, 0)), key="abs") == list(range(9, 0, -1))   # 9 items in 2 strided blocks: in order
+
+
+def test_dask_runners_resend_a_dropped_function_and_outlive_a_lost_worker():
+    """A batch goes to each worker's runner (an actor) as one pickled block: a runner that has
+    let a function go gets it again, and a batch whose worker was lost runs elsewhere, in
+    order, and then without that runner. A task's own error still reaches the caller."""
+    with DaskExecutor(workers=2) as dask:
+        items = list(range(-9, 0))
+        fns = [lambda x, k=k: x * k for k in range(6)]
+        for k, fn in enumerate(fns):                # more functions than a runner keeps: the first dropped
+            assert dask.map(fn, items, key=f"f{k}") == [x * k for x in items]
+        assert dask.map(fns[1], items, key="f1") == items        # the runner asks for it again
+        lost = dask._addresses[0]
+        with contextlib.suppress(Exception):     # the worker exits while answering
+            dask._client.run(os._exit, 1, workers=[lost])
+        for _ in range(20):                      # the scheduler hears of it within a second or so
+            if lost not in dask._client.scheduler_info().get("workers", {}):
+                break
+            time.sleep(0.2)
+        assert dask.map(abs, items, key="abs") == list(range(9, 0, -1))
+        assert lost not in dask._runners
+        with pytest.raises(ZeroDivisionError):
+            dask.map(lambda x: 1 / x, [1, 0, 2], key="inverse")
 
 
 def test_a_ready_pool_has_every_worker_started():

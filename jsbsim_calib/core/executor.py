@@ -19,11 +19,14 @@ import atexit
 import contextlib
 import hashlib
 import importlib
+import math
 import multiprocessing
 import os
+import pickle
 import shutil
 import signal
 import threading
+import time
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, Callable, Sequence
 
@@ -42,6 +45,7 @@ CONNECT_TIMEOUT_S = 5            # an unreachable dask scheduler fails after thi
 # deep stack of short Python calls into JSBSim, and the sampling cost it a quarter of its CPU (the
 # steady stage on 2 workers: 23.1 CPU-s against the pool's 18.5). A remote cluster: docs/cluster.md
 DASK_WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
+LOOK_EVERY_S = 10.0              # how often a dask executor looks for workers that joined or left
 
 
 def _call(key: str, payload, item):
@@ -68,8 +72,30 @@ def _call(key: str, payload, item):
 
 
 def _call_block(key: str, payload, items) -> list:
-    """A block of tasks in one worker (:meth:`DaskExecutor.map`)."""
+    """A block of tasks in one worker (:meth:`DaskExecutor.map`, where a worker has no runner)."""
     return [_call(key, payload, item) for item in items]
+
+
+class _Runner:
+    """A dask actor, one per worker: it runs blocks of tasks sent straight from the client,
+    without the scheduler in between, each block and its results pickled whole. (A batch of 16
+    items of 25 ms, each with a fit's 7 KB of warm starts, on 2 workers: 5-7 ms over its work,
+    as on the pool; 48 ms as actor calls of the items themselves, whose every small array dask
+    sends as a frame of its own, and 14-16 ms as pickled blocks in scheduled tasks.) It keeps
+    the last few serialized functions by key; a block of a key it no longer holds returns None,
+    and the client sends it again with the function."""
+
+    def __init__(self):
+        self._payloads: dict[str, bytes] = {}
+
+    def block(self, key: str, items: bytes, payload: bytes | None = None) -> bytes | None:
+        if payload is not None:
+            if key not in self._payloads and len(self._payloads) >= _CACHE_LIMIT:
+                self._payloads.pop(next(iter(self._payloads)))
+            self._payloads[key] = payload
+        elif key not in self._payloads and key not in _CACHE:
+            return None
+        return pickle.dumps([_call(key, self._payloads.get(key), item) for item in pickle.loads(items)])
 
 
 def _close(fn) -> None:
@@ -234,7 +260,9 @@ class ProcessExecutor(Executor):
 
 class DaskExecutor(Executor):
     """A dask.distributed cluster: ``scheduler`` its address, or None for a local cluster of
-    ``workers`` processes (one thread each: JSBSim is not shared between threads)."""
+    ``workers`` processes (one thread each: JSBSim is not shared between threads). A batch
+    goes as one block per worker to that worker's :class:`_Runner`; where a worker is lost, its
+    block runs as a task the scheduler places."""
 
     name = "dask"
 
@@ -257,32 +285,81 @@ class DaskExecutor(Executor):
                 self._cluster = LocalCluster(n_workers=max(1, int(workers or os.cpu_count() or 1)),
                                              threads_per_worker=1, processes=True, dashboard_address=None)
             self._client = Client(self._cluster)
+        self._scattered: dict = {}
+        self._runners: dict = {}     # a runner (actor) per worker, by its address, with the keys sent to it
+        self._looked = -math.inf
+        self._look()
+
+    def _look(self) -> None:
+        """The cluster's workers as they are now, each with its runner (a worker that joined
+        since gets one; one gone loses its own). At most every :data:`LOOK_EVERY_S`."""
+        if time.monotonic() - self._looked < LOOK_EVERY_S:
+            return
+        self._looked = time.monotonic()
         self._addresses = sorted(self._client.scheduler_info().get("workers", {}))
         self.workers = max(1, len(self._addresses))
-        self._scattered: dict = {}
+        for a in [a for a in self._runners if a not in self._addresses]:
+            del self._runners[a]
+        for a in self._addresses:
+            if a not in self._runners:
+                self._runners[a] = (self._client.submit(_Runner, actor=True, workers=[a], pure=False).result(), set())
 
     def map(self, fn, items, key=None):
         if len(items) <= 1:
             return super().map(fn, items, key)
+        self._look()
         digest, payload = self._payloads.get(fn, key)
-        if digest not in self._scattered:           # sent to every worker once
-            self._scattered = {digest: self._client.scatter(payload, broadcast=True)}
-        # a block of items per worker, not a task per item: a task costs the cluster about 2 ms
-        # of its scheduler's and workers' time, and a fit's batch is a few items of 10-40 ms (a
-        # batch of nine 30 ms items: 10-13 ms over its work against 19-24 ms; the pool's: 2-3).
-        # Strided, so that the costly items (a propeller factor's column loads JSBSim anew) spread
-        # over the blocks; placed one a worker (left alone, the scheduler at times queued a whole
-        # batch on one worker), and free to move where that worker is gone (docs/cluster.md)
-        n = min(len(items), self.workers)
+        # a block of items per worker, not a task per item, each to its worker's runner: a
+        # scheduled task costs the cluster about 2 ms of its scheduler's and workers' time,
+        # and a fit's batch is a few items of 10-40 ms. Strided, so that the costly items (a
+        # propeller factor's column loads JSBSim anew) spread over the blocks
+        runners = list(self._runners.items())
+        n = min(len(items), len(runners) or self.workers)
         blocks = [list(items[i::n]) for i in range(n)]
-        pins = [[a] for a in self._addresses] or [None]
-        futures = [self._client.submit(_call_block, digest, self._scattered[digest], block, pure=False,
-                                       workers=pins[i % len(pins)], allow_other_workers=True)
-                   for i, block in enumerate(blocks)]
+        if not runners:
+            results = self._scheduled(digest, payload, blocks)
+        else:
+            calls = [self._send(address, digest, payload, block) for (address, _), block in zip(runners, blocks)]
+            results = [self._result(call, address, digest, payload, block)
+                       for call, (address, _), block in zip(calls, runners, blocks)]
         out: list = [None] * len(items)
-        for i, block in enumerate(self._client.gather(futures)):
-            out[i::n] = block
+        for i, result in enumerate(results):
+            out[i::n] = result
         return out
+
+    def _send(self, address: str, digest: str, payload: bytes, block: list):
+        """A block to a runner (the function with it, unless sent before); None where its
+        worker is gone."""
+        runner, sent = self._runners[address]
+        try:
+            return runner.block(digest, pickle.dumps(block), None if digest in sent else payload)
+        except Exception:
+            return None
+
+    def _result(self, call, address: str, digest: str, payload: bytes, block: list) -> list:
+        """A runner's block: sent again with the function where the runner no longer holds it;
+        where its worker is gone, the runner dropped and the block scheduled anywhere (a task's
+        own error is raised again from there)."""
+        runner, sent = self._runners[address]
+        try:
+            if call is None:
+                raise RuntimeError(f"the runner on {address} is gone")
+            result = call.result()
+            if result is None:
+                result = runner.block(digest, pickle.dumps(block), payload).result()
+            sent.add(digest)
+            return pickle.loads(result)
+        except Exception:
+            if address not in self._client.scheduler_info().get("workers", {}):
+                del self._runners[address]
+            return self._scheduled(digest, payload, [block])[0]
+
+    def _scheduled(self, digest: str, payload: bytes, blocks: list[list]) -> list[list]:
+        """Blocks as tasks the scheduler places."""
+        if digest not in self._scattered:
+            self._scattered = {digest: self._client.scatter(payload, broadcast=True)}
+        return self._client.gather([self._client.submit(_call_block, digest, self._scattered[digest], block,
+                                                        pure=False) for block in blocks])
 
     def ready(self, modules: Sequence[str] = ()) -> None:
         """``modules`` imported on every worker (the cluster's workers have started with it)."""
