@@ -300,9 +300,10 @@ class DaskExecutor(Executor):
         self.workers = max(1, len(self._addresses))
         for a in [a for a in self._runners if a not in self._addresses]:
             del self._runners[a]
-        for a in self._addresses:
+        for a in self._addresses:       # free to start elsewhere where its worker has just left
             if a not in self._runners:
-                self._runners[a] = (self._client.submit(_Runner, actor=True, workers=[a], pure=False).result(), set())
+                runner = self._client.submit(_Runner, actor=True, workers=[a], allow_other_workers=True, pure=False)
+                self._runners[a] = (runner.result(), set())
 
     def map(self, fn, items, key=None):
         if len(items) <= 1:
