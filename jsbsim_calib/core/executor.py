@@ -81,21 +81,14 @@ class _Runner:
     without the scheduler in between, each block and its results pickled whole. (A batch of 16
     items of 25 ms, each with a fit's 7 KB of warm starts, on 2 workers: 5-7 ms over its work,
     as on the pool; 48 ms as actor calls of the items themselves, whose every small array dask
-    sends as a frame of its own, and 14-16 ms as pickled blocks in scheduled tasks.) It keeps
-    the last few serialized functions by key; a block of a key it no longer holds returns None,
+    sends as a frame of its own, and 14-16 ms as pickled blocks in scheduled tasks.) A block of
+    a function its worker no longer holds (it keeps the last few: :func:`_call`) returns None,
     and the client sends it again with the function."""
 
-    def __init__(self):
-        self._payloads: dict[str, bytes] = {}
-
     def block(self, key: str, items: bytes, payload: bytes | None = None) -> bytes | None:
-        if payload is not None:
-            if key not in self._payloads and len(self._payloads) >= _CACHE_LIMIT:
-                self._payloads.pop(next(iter(self._payloads)))
-            self._payloads[key] = payload
-        elif key not in self._payloads and key not in _CACHE:
+        if payload is None and key not in _CACHE:
             return None
-        return pickle.dumps([_call(key, self._payloads.get(key), item) for item in pickle.loads(items)])
+        return pickle.dumps(_call_block(key, payload, pickle.loads(items)))
 
 
 def _close(fn) -> None:
