@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import multiprocessing
 import signal
 import sys
 import threading
@@ -43,11 +44,17 @@ def _interrupted_loading(signum, frame):
 
 
 # Ctrl-C while the command loads (seconds on a busy machine): one line, exit 130 (main() then
-# turns it into KeyboardInterrupt); a pool worker that loads this module as its main ignores it
-ENTRY = __name__ == "__main__" or Path(sys.argv[0]).name == "jsbsim-calib"     # this process is the command
+# turns it into KeyboardInterrupt). A worker process (a pool's, a local dask cluster's) that loads
+# this module ignores it: a terminal's Ctrl-C reaches every process of the command, and the
+# command alone answers it. (A spawned worker has the command's sys.argv and runs its script
+# as its own main module, named __mp_main__, before its parent_process() is set: a dask worker of
+# `jsbsim-calib` took itself for the command and printed the line too.)
+WORKER = getattr(sys.modules.get("__mp_main__"), "__name__", None) == "__mp_main__" \
+    or multiprocessing.parent_process() is not None
+ENTRY = not WORKER and (__name__ == "__main__" or Path(sys.argv[0]).name == "jsbsim-calib")   # the command
 if ENTRY:
     signal.signal(signal.SIGINT, _interrupted_loading)
-elif __name__ == "__mp_main__":
+elif WORKER:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 from . import __version__  # noqa: E402  (after the SIGINT handler: imports take seconds)

@@ -206,3 +206,28 @@ def test_ctrl_c_while_a_worker_is_born_prints_no_workers_traceback(tmp_path):
     run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=ENV, timeout=120)
     assert run.returncode == 0 and run.stdout.strip() == "interrupted", (run.stdout, run.stderr)
     assert run.stderr == "", run.stderr
+
+
+def test_a_terminals_ctrl_c_on_a_dask_run_is_answered_by_the_command_alone(root):
+    """A terminal's Ctrl-C reaches every process of the command. The dask workers of the
+    `jsbsim-calib` script (spawned, they run its script too) leave it to the command, and the
+    command's close of the cluster, with its runners' calls in flight, logs nothing: one line,
+    exit 130 (before: the line three times, or a worker's traceback, and the scheduler's errors)."""
+    script = Path(sys.executable).with_name("jsbsim-calib")
+    assert script.is_file(), f"{script}: the package's script (pip install -e .)"
+    p = subprocess.Popen([str(script), "--root", str(root), "--executor", "dask", "--workers", "2", "calibrate", "c172",
+                          "--stage", "steady", "--no-write"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, env=ENV, start_new_session=True)
+    try:
+        started = ""
+        while not started.startswith("start:"):         # the stage's first line: the cluster is up
+            started = p.stdout.readline()
+            if not started:
+                break
+        os.killpg(p.pid, signal.SIGINT)
+        _, err = p.communicate(timeout=120)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+    assert started.startswith("start:"), err
+    assert p.returncode == 130 and err.strip() == "interrupted; nothing written", err
