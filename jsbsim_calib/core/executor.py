@@ -19,6 +19,7 @@ import atexit
 import contextlib
 import hashlib
 import importlib
+import logging
 import math
 import multiprocessing
 import os
@@ -363,6 +364,20 @@ class DaskExecutor(Executor):
         self._client.close()
         if self._cluster is not None:
             self._cluster.close()
+
+    def __exit__(self, kind, *exc):
+        if kind is None:
+            return self.close()
+        # interrupted (or failed) with runners' calls in flight: the local scheduler's close would
+        # log an error for each worker whose connection those calls left closed, after the
+        # command's own one line
+        log = logging.getLogger("distributed")
+        level = log.level
+        log.setLevel(logging.CRITICAL)
+        try:
+            self.close()
+        finally:
+            log.setLevel(level)
 
 
 def make_executor(kind: str = "serial", workers: int | None = None, scheduler: str | None = None) -> Executor:
