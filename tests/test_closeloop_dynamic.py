@@ -180,8 +180,12 @@ def test_a_yaw_due_to_roll_rate_is_found_and_its_coefficient_recovered(clean, cn
     assert res.added == ["yaw_due_to_roll_rate"], [(c.effect, c.round, c.reason) for c in res.candidates]
     k = res.factors["yaw_due_to_roll_rate.K"]
     assert k == pytest.approx(TRUTH_CN_P, rel=0.25)          # measured: -0.0509 (truth -0.05)
-    best = min((c for c in res.candidates if c.round == 1), key=lambda c: c.delta_bic)
-    assert best.effect == "yaw_due_to_roll_rate" and best.accepted
+    first = [c for c in res.candidates if c.round == 1]
+    best = next(c for c in first if c.accepted)
+    # the library effect wins the round; the synthesized Cn ~ p b/2V, the same term, ties with it
+    # (measured: BIC change -5779.73 against -5779.74) and the library's is kept
+    assert best.effect == "yaw_due_to_roll_rate"
+    assert best.delta_bic <= min(c.delta_bic for c in first) + 0.1
     assert best.delta_bic <= -MIN_EVIDENCE and best.share >= MIN_EXPLAINED and best.cv[1] < 0.5 * best.cv[0]
     b, a = res.errors("before")["yaw"]["r_deg_s"], res.errors("after")["yaw"]["r_deg_s"]
     assert b.max_abs > 2 * CHANNEL_SCALES["r_deg_s"]           # the yaw rate visibly outside its scale
