@@ -234,7 +234,7 @@ def test_real_c172_trims_without_pfactor_step_find_the_yaw_effect(tmp_path):
     res = run_close_loop(REPO, "c172", REPO / "data" / "c172_flight_test_snapshots.csv", skip_steps=("pfactor",))
     s = res.summaries("all")
     assert res.added[:1] == ["p_factor"], [(c.effect, c.round, c.reason) for c in res.candidates]
-    # measured with the swirl on and the joint refit on every POH point: rudder RMSE 0.96 -> 0.45 deg,
+    # measured with the swirl on and the joint refit on every POH point: rudder RMSE 0.94 -> 0.45 deg,
     # within +-1 deg 75 -> 100 % (0.86 -> 0.44, 75 -> 95 % when it fitted stage 1's 16 POH points)
     # (with it off: 1.42 -> 0.65 deg, 35 -> 85 %)
     assert s.before["rudder_deg"].rmse > 0.75 and s.after["rudder_deg"].rmse < 0.55

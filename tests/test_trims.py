@@ -217,14 +217,14 @@ def test_committed_c172_keeps_its_measured_flight_test_accuracy(repo):
     with Simulator(repo, "c172") as sim:
         snap = evaluate_dataset(sim, _load()).summary()
         flap = evaluate_dataset(sim, load_dataset(repo / "data" / "c172_flight_test_flap_climb.csv")).summary()
-    # measured (20 usable rows, after the joint refit on every POH point): pitch 85 % / 0.81 deg (C.18
-    # -1.01, C.32 +1.13 and the turn C.59 -2.99 outside +-1), elevator 90 % / 0.67, aileron 100 % / 0.32,
-    # rudder 95 % / 0.56, flaps-10 climbs 100 % / 33.8 fpm
-    assert snap["pitch_deg"].within_pct >= 85.0 and snap["pitch_deg"].rmse < 0.83
+    # measured (20 usable rows, after the joint refit on every POH point): pitch 90 % / 0.81 deg (C.32
+    # +1.14 and the turn C.59 -2.99 outside +-1; C.18 -1.00 on the line), elevator 90 % / 0.67, aileron
+    # 100 % / 0.32, rudder 95 % / 0.56, flaps-10 climbs 100 % / 34.6 fpm
+    assert snap["pitch_deg"].within_pct >= 90.0 and snap["pitch_deg"].rmse < 0.83
     assert snap["elevator_deg"].within_pct >= 90.0 and snap["elevator_deg"].rmse < 0.70
     assert snap["aileron_deg"].within_pct == 100.0 and snap["aileron_deg"].rmse < 0.35
     assert snap["rudder_deg"].within_pct >= 95.0 and snap["rudder_deg"].rmse < 0.58
-    assert flap["roc_fpm"].within_pct == 100.0 and flap["roc_fpm"].rmse < 35.0
+    assert flap["roc_fpm"].within_pct == 100.0 and flap["roc_fpm"].rmse < 36.0
 
 
 def test_committed_c172_meets_the_poh_targets_on_every_poh_point(repo):
@@ -233,7 +233,7 @@ def test_committed_c172_meets_the_poh_targets_on_every_poh_point(repo):
     with Simulator(repo, "c172") as sim:
         climb = evaluate_dataset(sim, load_dataset(repo / "data" / "c172_poh_climb.csv")).summary()
         cruise = evaluate_dataset(sim, load_dataset(repo / "data" / "c172_poh_cruise.csv")).summary()
-    # measured: climb 17.74 fpm, RPM 9.28, power 0.99 points; every point within its tolerance
+    # measured: climb 17.57 fpm, RPM 9.27, power 0.994 points; every point within its tolerance
     assert climb["roc_fpm"].n == 27 and climb["roc_fpm"].rmse <= 20.0 and climb["roc_fpm"].within_pct == 100.0
     assert cruise["rpm"].n == 37 and cruise["rpm"].rmse <= 10.0 and cruise["rpm"].within_pct == 100.0
     assert cruise["pct_power"].rmse <= 1.0 and cruise["pct_power"].within_pct == 100.0
