@@ -118,7 +118,7 @@ CASES = {
                                           "elevator_deg"),
     # CD ~ alpha^2 (climbs at full throttle, roc): roc 84 % -> 100 %, 2.55 /rad2 (truth 2.5, +2 %)
     "drag in alpha^2": (UndeclaredTerm("DRAG", 2.5, "alpha^2"), "climbs", 150, 16, "roc_fpm"),
-    # Cn ~ p b/2V (banked turns): rudder 86.7 % -> 100 %, 7.97 (truth 8, -0.4 %), BIC change -76.4; 60 points:
+    # Cn ~ p b/2V (banked turns): rudder 86.7 % -> 100 %, 7.96 (truth 8, -0.4 %), BIC change -76.6; 60 points:
     # with 40 (BIC change -39.8 on the product before the joint refit fitted every POH point) the residual of
     # the fitted 30 fell within the noise estimate on today's product, and nothing was tried
     "yawing moment in roll rate": (UndeclaredTerm("YAW", 8.0, "p b/2V"), "snapshots", 60, 17, "rudder_deg"),
