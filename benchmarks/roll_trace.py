@@ -130,10 +130,15 @@ def trace(base: Simulator, regressor: str, meaning: str, tests, target, ds) -> s
         residual(fit.x)
         got, trims = rates(sim, tests.values()), aileron_within(sim, ds)
     both = all(abs(got[i] - target[i]) <= 2.0 for i in STEPS)
-    return (f"{regressor:<18} {k:>11.4g} {clp:>8.4g}  {got['C.58']:>+6.1f} {got['C.60']:>+6.1f}  "
-            f"{got['C.25']:>+6.1f} {got['C.27']:>+6.1f}  {trims[0]:>5.2f} / {trims[1]:3.0f} %  "
+    return (f"{regressor:<18} {k:>11.4g} {clp:>8.4g}  {_rate(got['C.58'])} {_rate(got['C.60'])}  "
+            f"{_rate(got['C.25'])} {_rate(got['C.27'])}  {trims[0]:>5.2f} / {trims[1]:3.0f} %  "
             f"{'both steps met' if both else 'steps NOT met'}; {meaning}: {power}; "
             f"{'; '.join(_conflicts(got, target, trims, clp, f)) or 'no conflict'}")
+
+
+def _rate(v: float) -> str:
+    """A steady or peak roll rate for the table; "n/f" where the maneuver could not be flown."""
+    return f"{v:>+6.1f}" if np.isfinite(v) else f"{'n/f':>6}"
 
 
 def _conflicts(got, target, trims, clp, f) -> list[str]:
