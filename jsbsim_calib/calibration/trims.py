@@ -17,8 +17,9 @@ from .points import FAIL_PENALTY, HOLD_TOL_SCALE, Residual, point_sets, held_set
 
 TARGET_SCALE = 0.2           # the POH's RMSE targets (20 fpm, 10 rpm, 1 point) in shares of their tolerances
 REFIT_LEGS = ((1.0, 0.02), (1.0, 0.002))   # the refit starts where the steps stopped: no path of priors
-REFIT_TOL = 1e-3            # its legs stop at a step gaining < 0.1 % (at fit.FIT_TOL, 1e-6: 26 iterations to cost
-                            # 61.81 on every POH point, 15 of them gaining < 0.1 % each; at 1e-3: 11 to 61.80)
+REFIT_TOL = 1e-3            # its legs stop at a step gaining < 0.1 %, or a step or gradient that small (at fit.FIT_TOL,
+                            # 1e-6: 26 iterations to cost 61.81 on every POH point, 15 of them gaining < 0.1 % each;
+                            # at 1e-3: 11 to 61.80, stopped by the step's length)
 STEP_PRIOR = 0.1             # stage 2a's steps fit a few factors the trims identify: a weaker pull
 
 
@@ -38,7 +39,7 @@ class TrimStep:
     prior_at_start: bool = False     # pull factors toward their values at the step's start, not neutral
     prior: float = STEP_PRIOR        # weight of that pull (see fit)
     legs: tuple[tuple[float, float], ...] | None = None   # the fit's legs (None: fit.LEGS)
-    ftol: float = FIT_TOL            # a leg stops when an accepted step gains less than this share of the cost
+    ftol: float = FIT_TOL            # the fit's ftol = xtol = gtol: a leg stops when a step gains less (see fit)
 
 
 POH_HOLD = (Residual("poh_climb", "subset", "roc_fpm"), Residual("poh_cruise", "subset", "pct_power"),
